@@ -1,0 +1,110 @@
+"""PI / PID with filtered derivative on the measurement, feed-forward and anti-windup.
+
+    e      = r - y
+    u      = Kp e + I + D + Kff dr/dt,     u_sat = clamp(u, u_min, u_max)
+    D(s)   = -Kd s / (1 + Tf s) Y(s)       (backward Euler: no derivative kick on set-point steps)
+    dI/dt  = Ki e + Kaw (u_sat - u)        (back-calculation with the realised output)
+
+One compiled law serves the speed loop (y = motor speed, u = iq*) and the position loop
+(y = rod position, u = motor speed command). The configs below choose the gains from a
+bandwidth, following the cascade practice of motulator (Aalto) and Astrom & Hagglund, PID
+Controllers (1995): the speed loop places both closed-loop poles at -alpha_s on the rigid
+inertia (Kp = 2 alpha J/kt, Ki = alpha^2 J/kt); the position loop sees the speed loop as ideal,
+x' = K w, and places both poles at -alpha_p.
+"""
+
+import math
+from typing import ClassVar, Literal
+
+import numba as nb
+import numpy as np
+from pydantic import Field
+
+from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
+from ..numerics import clamp
+from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+
+KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW = range(9)
+N_PARAMS = 9
+INTEGRAL, DERIVATIVE, Y_PREV, STARTED = range(4)
+N_STATE = 4
+
+
+@nb.njit(CONTROLLER_SIG, cache=True)
+def pid(state, params, meas, ref, ts, out):
+    """PID law of the module docstring; params and state laid out by KP..KAW, INTEGRAL..STARTED."""
+    y = meas[int(params[CHANNEL])]
+    if state[STARTED] == 0.0:
+        state[Y_PREV] = y
+        state[STARTED] = 1.0
+    e = ref[R_VALUE] - y
+    tf = params[TF]
+    state[DERIVATIVE] = (tf * state[DERIVATIVE] - params[KD] * (y - state[Y_PREV])) / (tf + ts)
+    state[Y_PREV] = y
+    u = params[KP] * e + state[INTEGRAL] + state[DERIVATIVE] + params[KFF] * ref[R_RATE]
+    u_sat = clamp(u, params[U_MIN], params[U_MAX])
+    state[INTEGRAL] += ts * (params[KI] * e + params[KAW] * (u_sat - u))
+    out[O_VALUE] = u_sat
+    out[O_RATE] = params[KFF] * ref[R_ACCEL]
+
+
+def pack_pid(kp, ki, kd, tf, limit, kff, channel) -> Compiled:
+    """Parameter array and zero state of :func:`pid`; anti-windup gain Kaw = Ki/Kp (Tt = Ti)."""
+    params = np.zeros(N_PARAMS)
+    params[KP], params[KI], params[KD], params[TF] = kp, ki, kd, tf
+    params[U_MIN], params[U_MAX] = -limit, limit
+    params[KFF], params[CHANNEL] = kff, channel
+    params[KAW] = ki / kp if kp > 0 else 0.0
+    return Compiled(pid, params, np.zeros(N_STATE))
+
+
+class SpeedPI(ControllerConfig):
+    """Speed-loop PI: motor speed error (rad/s) -> q-axis current command (A)."""
+
+    loop: ClassVar = "speed"
+    name: Literal["pi"] = "pi"
+    bandwidth_Hz: float = Field(default=50.0, gt=0, le=1e4, description="alpha_s / (2 pi)")
+    kp_A_s_per_rad: float | None = Field(default=None, ge=0, description="overrides bandwidth")
+    ki_A_per_rad: float | None = Field(default=None, ge=0, description="overrides bandwidth")
+    acceleration_feedforward: bool = Field(
+        default=False, description="add J/kt * dw_ref/dt to the current command"
+    )
+
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        alpha = 2.0 * math.pi * self.bandwidth_Hz
+        j_over_kt = plant.inertia_kgm2 / plant.torque_constant_Nm_per_A
+        kp = self.kp_A_s_per_rad if self.kp_A_s_per_rad is not None else 2.0 * alpha * j_over_kt
+        ki = self.ki_A_per_rad if self.ki_A_per_rad is not None else alpha**2 * j_over_kt
+        kff = j_over_kt if self.acceleration_feedforward else 0.0
+        return pack_pid(kp, ki, 0.0, ts, plant.max_current_A, kff, M_SPEED)
+
+
+class PositionPID(ControllerConfig):
+    """Position-loop PID: rod position error (m) -> motor speed command (rad/s).
+
+    Gains act on rod quantities (Kp in 1/s, Ki in 1/s^2, Kd dimensionless) and are divided by K
+    to command the motor. From the bandwidth, with the speed loop taken as ideal, the loop
+    (1 + Kd) s^2 + Kp s + Ki has both poles at -alpha_p: Kp = 2 alpha (1 + Kd),
+    Ki = alpha^2 (1 + Kd). ``pi`` is the same law with Kd = 0.
+    """
+
+    loop: ClassVar = "position"
+    name: Literal["pid", "pi"] = "pid"
+    bandwidth_Hz: float = Field(default=4.0, gt=0, le=1e3, description="alpha_p / (2 pi)")
+    kd: float | None = Field(default=None, ge=0, description="derivative gain; pid default 0.05")
+    kp_per_s: float | None = Field(default=None, ge=0, description="overrides bandwidth")
+    ki_per_s2: float | None = Field(default=None, ge=0, description="overrides bandwidth")
+    derivative_filter_s: float = Field(default=2e-3, gt=0, description="Tf of the D term")
+    velocity_feedforward: bool = Field(default=True, description="add dx_ref/dt / K")
+
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        alpha = 2.0 * math.pi * self.bandwidth_Hz
+        kd = 0.0 if self.name == "pi" else (0.05 if self.kd is None else self.kd)
+        kp = self.kp_per_s if self.kp_per_s is not None else 2.0 * alpha * (1.0 + kd)
+        ki = self.ki_per_s2 if self.ki_per_s2 is not None else alpha**2 * (1.0 + kd)
+        k = plant.ratio_m_per_rad
+        kff = 1.0 / k if self.velocity_feedforward else 0.0
+        return pack_pid(
+            kp / k, ki / k, kd / k, self.derivative_filter_s, plant.max_speed_rad_s, kff,
+            M_POSITION,
+        )

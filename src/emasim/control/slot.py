@@ -1,0 +1,74 @@
+"""The controller calling convention, and what a controller may know of the plant.
+
+A controller is a compiled function ``f(state, params, meas, ref, ts, out)``:
+
+    state  float64[::1]  its own memory (integrators, filters), read and written
+    params float64[::1]  its gains and limits, read only
+    meas   float64[::1]  sensor readings, layout in emasim.interface (M_*)
+    ref    float64[::1]  set-point, its rate and acceleration (R_*)
+    ts     float64       sample period (s)
+    out    float64[::1]  command and its rate (O_*), written
+
+Every library controller is compiled eagerly with exactly :data:`CONTROLLER_SIG` and
+``cache=True``; the engine receives it as a first-class function value
+(:data:`CONTROLLER_TYPE`), so changing the controller never recompiles the loop. A user's own
+``@numba.njit(CONTROLLER_SIG)`` function plugs in the same way.
+"""
+
+import math
+from abc import abstractmethod
+from dataclasses import dataclass
+from collections.abc import Callable
+from typing import ClassVar, Literal
+
+import numpy as np
+from numba import types
+from pydantic import BaseModel, ConfigDict
+
+F8_ARRAY = types.float64[::1]
+CONTROLLER_SIG = types.void(F8_ARRAY, F8_ARRAY, F8_ARRAY, F8_ARRAY, types.float64, F8_ARRAY)
+CONTROLLER_TYPE = types.FunctionType(CONTROLLER_SIG)
+
+Loop = Literal["speed", "position"]
+
+
+@dataclass(frozen=True)
+class PlantFacts:
+    """The plant knowledge a controller design may use (SI units)."""
+
+    inertia_kgm2: float  # motor inertia + load reflected to the motor shaft
+    torque_constant_Nm_per_A: float  # kt = 1.5 np psi_f
+    ratio_m_per_rad: float  # K: rod metres per motor radian
+    max_current_A: float
+    max_speed_rad_s: float
+    resistance_ohm: float
+    inductance_d_H: float
+    inductance_q_H: float
+    flux_linkage_Wb: float
+    pole_pairs: int
+    dc_bus_V: float
+
+    @property
+    def max_voltage_V(self) -> float:
+        """Largest dq voltage magnitude of an SVPWM inverter, Udc/sqrt(3)."""
+        return self.dc_bus_V / math.sqrt(3.0)
+
+
+@dataclass(frozen=True)
+class Compiled:
+    """A controller ready for the engine: its function, parameter array and initial state."""
+
+    function: Callable
+    params: np.ndarray
+    state: np.ndarray
+
+
+class ControllerConfig(BaseModel):
+    """Base of controller configs: validated, unit-suffixed fields, no unknown keys."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+    loop: ClassVar[Loop]
+
+    @abstractmethod
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        """Gains and limits for this plant and sample period, packed for the engine."""

@@ -1,0 +1,13 @@
+"""Errors meant for the user: the command line prints their message as one line, exit code 2."""
+
+
+class EmasimError(Exception):
+    """Base of every error whose message is written for the user."""
+
+
+class InputError(EmasimError):
+    """A scenario, option or argument is invalid; the message names the field and the range."""
+
+
+class SimulationDiverged(EmasimError):
+    """The simulation produced NaN/inf or a state beyond its physical bound."""

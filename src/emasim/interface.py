@@ -1,0 +1,48 @@
+"""The vectors exchanged between the plant's sensors and the controllers (index constants).
+
+Plant code and control code never import each other; both import this module.
+
+Measurement vector ``meas`` (what sensors report at a tick, SI units):
+    M_SPEED     motor mechanical speed wm (rad/s)
+    M_ANGLE     motor shaft angle theta_m (rad)
+    M_POSITION  actuator rod position x (m)
+    M_VELOCITY  actuator rod velocity (m/s)
+    M_ID, M_IQ  dq stator currents (A)
+    M_FORCE     actuator rod force, the drive-train contact force (N)
+    M_RUDDER    rudder (control-surface) angle (rad)
+
+Reference vector ``ref`` given to a controller: R_VALUE, R_RATE (first derivative) and
+R_ACCEL (second derivative) of its set-point, in the units of the loop.
+
+Output vector ``out`` written by a controller: O_VALUE, the command for the inner loop, and
+O_RATE, its time derivative as far as the controller knows it (used as feed-forward).
+"""
+
+M_SPEED = 0
+M_ANGLE = 1
+M_POSITION = 2
+M_VELOCITY = 3
+M_ID = 4
+M_IQ = 5
+M_FORCE = 6
+M_RUDDER = 7
+N_MEAS = 8
+MEASUREMENT_NAMES = (
+    "speed",
+    "angle",
+    "position",
+    "velocity",
+    "id",
+    "iq",
+    "force",
+    "rudder",
+)
+
+R_VALUE = 0
+R_RATE = 1
+R_ACCEL = 2
+N_REF = 3
+
+O_VALUE = 0
+O_RATE = 1
+N_OUT = 2

@@ -1,0 +1,21 @@
+"""Small compiled helpers shared by plant and control code."""
+
+import math
+
+import numba as nb
+
+
+@nb.njit(cache=True, inline="always")
+def clamp(value, lower, upper):
+    """value limited to [lower, upper]."""
+    return min(max(value, lower), upper)
+
+
+@nb.njit(cache=True, inline="always")
+def limit_magnitude(a, b, limit):
+    """Scale the vector (a, b) down to length ``limit`` if it is longer; keep its direction."""
+    mag = math.sqrt(a * a + b * b)
+    if mag <= limit:
+        return a, b
+    scale = limit / mag
+    return a * scale, b * scale

@@ -1,0 +1,50 @@
+"""Backlash: the dead-zone contact law between two bodies, and the play (hysteresis) operator.
+
+Dead zone (force/torque form), total gap width 2b, relative displacement dx, rate dv:
+
+    Fc = K (dx - b)   if dx >  b
+    Fc = 0            if |dx| <= b
+    Fc = K (dx + b)   if dx < -b
+
+plus a damping force c dv that acts only in contact and is limited to |c dv| <= |Fc| (the
+Modelica ElastoBacklash rule): the total force is continuous at first contact and never pulls
+the bodies together.
+
+Play operator (position form), for a position read through a gap of half-width b:
+
+    y = l x - b   if l x - b >= y_prev
+    y = l x + b   if l x + b <= y_prev
+    y = y_prev    otherwise
+
+(the paper's eq. 17, read cleanly; l is a gain, 1 by default).
+"""
+
+import numba as nb
+
+
+@nb.njit(cache=True, inline="always")
+def dead_zone_force(dx, dv, half_gap, stiffness, damping):
+    """Contact force of a backlash element (N or N*m), positive when dx > half_gap.
+
+    Parameters: dx relative displacement and dv its rate (m, m/s or rad, rad/s), half_gap b,
+    stiffness K and damping c of the contact. Returns Fc + limited damping as described in the
+    module docstring.
+    """
+    if dx > half_gap:
+        spring = stiffness * (dx - half_gap)
+        return spring + min(max(damping * dv, -spring), spring)
+    if dx < -half_gap:
+        spring = stiffness * (dx + half_gap)
+        return spring + min(max(damping * dv, spring), -spring)
+    return 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def play_operator(x, y_prev, half_gap, gain):
+    """Output of the play operator for input x, previous output y_prev (see module docstring)."""
+    lx = gain * x
+    if lx - half_gap >= y_prev:
+        return lx - half_gap
+    if lx + half_gap <= y_prev:
+        return lx + half_gap
+    return y_prev

@@ -1,0 +1,35 @@
+"""Gearbox and planetary roller screw: the kinematic chain from motor angle to rod position.
+
+Gearbox (spur pair): ratio N = Z2/Z1, w_out = w_in / N, T_out = eta_g N T_in when driving.
+Roller screw: lead L = n_s p, x = theta_s L / (2 pi), F = 2 pi eta_s T / L when driving.
+Overall x = K theta_m with K = L / (2 pi N) (m/rad). Ratio and efficiency are kept apart: the
+paper's i = eta Z2/Z1 is right for torque but wrong for speed.
+
+Efficiency depends on the direction of power flow. A force F on the nut, reflected to the motor
+shaft, is K F / eta while the motor drives the load (K F wm > 0), and K F eta while the load
+back-drives the motor. Both branches are zero at F = 0, so the reflected torque is continuous
+when contact opens or closes.
+"""
+
+import math
+
+import numba as nb
+
+
+def screw_lead(starts: int, pitch_m: float) -> float:
+    """Lead L = n_s p (m per screw revolution)."""
+    return starts * pitch_m
+
+
+def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
+    """K = L / (2 pi N): rod travel per motor radian (m/rad)."""
+    return lead_m / (2.0 * math.pi * gear_ratio)
+
+
+@nb.njit(cache=True, inline="always")
+def reflected_torque(force, motor_speed, ratio_k, efficiency):
+    """Torque (N*m) that a nut force (N) puts on the motor shaft through gearbox and screw."""
+    torque = ratio_k * force
+    if torque * motor_speed > 0.0:
+        return torque / efficiency
+    return torque * efficiency

@@ -1,0 +1,44 @@
+"""Permanent-magnet synchronous motor in the rotor dq frame, with an averaged inverter.
+
+    did/dt = (ud - Rs id + we Lq iq) / Ld
+    diq/dt = (uq - Rs iq - we (Ld id + psi_f)) / Lq
+    Te     = 1.5 np (psi_f iq + (Ld - Lq) id iq)
+    we     = np wm
+
+(SI: V, A, ohm, H, Wb, rad/s, N*m; amplitude-invariant Park transform, hence the 1.5.) The
+mechanical equation J dwm/dt = Te - TL - B wm - Tf is assembled in :mod:`emasim.plant.actuator`
+because its load comes from the drive train. The inverter is averaged: it delivers the commanded
+voltage vector, limited in magnitude to the largest sine a space-vector modulator reaches,
+|u_dq| <= Udc / sqrt(3).
+"""
+
+import math
+
+import numba as nb
+
+from ..numerics import limit_magnitude
+
+
+@nb.njit(cache=True, inline="always")
+def current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f):
+    """Return (did/dt, diq/dt) in A/s from the dq voltage equations."""
+    did = (u_d - rs * i_d + w_e * lq * i_q) / ld
+    diq = (u_q - rs * i_q - w_e * (ld * i_d + psi_f)) / lq
+    return did, diq
+
+
+@nb.njit(cache=True, inline="always")
+def electromagnetic_torque(i_d, i_q, pole_pairs, ld, lq, psi_f):
+    """Te = 1.5 np (psi_f iq + (Ld - Lq) id iq) in N*m."""
+    return 1.5 * pole_pairs * (psi_f * i_q + (ld - lq) * i_d * i_q)
+
+
+@nb.njit(cache=True, inline="always")
+def limit_voltage(u_d, u_q, u_dc):
+    """Scale (ud, uq) so that |u| <= Udc/sqrt(3), keeping its direction (averaged SVPWM)."""
+    return limit_magnitude(u_d, u_q, u_dc / math.sqrt(3.0))
+
+
+def torque_constant(pole_pairs: float, psi_f: float) -> float:
+    """kt = 1.5 np psi_f (N*m/A): torque per q-axis ampere with id = 0."""
+    return 1.5 * pole_pairs * psi_f

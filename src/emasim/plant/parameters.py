@@ -1,0 +1,194 @@
+"""Plant parameters as validated configuration, in engineering units at the edge.
+
+Every field carries its unit in its name (``inertia_kgm2``, ``screw_lead_mm``). The models reject
+unknown keys, NaN/inf and out-of-range values with the field's path. :meth:`PlantParams.pack`
+converts everything to SI once and returns the flat float array the compiled plant reads
+(indices in :mod:`emasim.plant.actuator`). The numbers themselves live in
+:mod:`emasim.plant.presets`.
+"""
+
+import math
+from typing import Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from ..interface import MEASUREMENT_NAMES
+from . import actuator as A
+from .drivetrain import transmission_ratio
+from .friction import bristle_damping_for_ratio
+
+RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
+MM = 1e-3  # m per mm
+
+
+class Strict(BaseModel):
+    """Base of every configuration model: no unknown keys, no NaN/inf, assignment validated."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+
+
+class MotorParams(Strict):
+    """PMSM and its drive limits."""
+
+    resistance_ohm: float = Field(gt=0, description="stator resistance Rs")
+    inductance_d_H: float = Field(gt=0, description="d-axis inductance Ld")
+    inductance_q_H: float = Field(gt=0, description="q-axis inductance Lq")
+    flux_linkage_Wb: float = Field(gt=0, description="permanent-magnet flux linkage psi_f")
+    inertia_kgm2: float = Field(gt=0, description="rotor (+ screw) inertia J")
+    viscous_Nms_per_rad: float = Field(ge=0, description="viscous damping B")
+    pole_pairs: int = Field(ge=1, le=64, description="pole pairs np")
+    dc_bus_V: float = Field(gt=0, description="DC-link voltage Udc")
+    max_current_A: float = Field(gt=0, description="q-axis current limit of the drive")
+    max_speed_rpm: float = Field(gt=0, description="speed command limit")
+
+
+class DrivetrainParams(Strict):
+    """Gearbox and planetary roller screw (ratio and efficiency kept apart)."""
+
+    gear_ratio: float = Field(gt=0, description="N = Z2/Z1, motor turns per screw turn")
+    gear_efficiency: float = Field(gt=0, le=1)
+    screw_lead_mm: float = Field(gt=0, description="lead L = starts * pitch")
+    screw_efficiency: float = Field(gt=0, le=1)
+    stroke_mm: float = Field(gt=0, description="usable rod stroke")
+
+
+class FrictionParams(Strict):
+    """Friction on the motor/screw shaft (rotational form, N*m and rad)."""
+
+    model: Literal["lugre", "coulomb", "none"] = "lugre"
+    coulomb_Nm: float = Field(ge=0, description="Coulomb level Tc")
+    static_Nm: float = Field(ge=0, description="stiction level Ts >= Tc")
+    stribeck_speed_rad_s: float = Field(gt=0, description="Stribeck speed ws")
+    bristle_stiffness_Nm_per_rad: float = Field(gt=0, description="sigma0")
+    bristle_damping_ratio: float = Field(
+        ge=0, le=10, description="zeta of the presliding mode, sets sigma1"
+    )
+    viscous_Nms_per_rad: float = Field(ge=0, description="sigma2")
+    smoothing_speed_rad_s: float = Field(
+        gt=0, description="coulomb model only: tanh(w/ws) replaces sign(w)"
+    )
+
+    @model_validator(mode="after")
+    def _stiction_not_below_coulomb(self):
+        if self.static_Nm < self.coulomb_Nm:
+            raise ValueError(
+                f"static_Nm must be >= coulomb_Nm ({self.coulomb_Nm}), got {self.static_Nm}"
+            )
+        return self
+
+
+class BacklashParams(Strict):
+    """Total drive-train backlash between the nut (motor side) and the rod (load side)."""
+
+    width_mm: float = Field(ge=0, le=10, description="total gap 2b")
+    stiffness_N_per_m: float = Field(gt=0, description="contact stiffness K")
+    damping_ratio: float = Field(ge=0, le=10, description="contact damping ratio on reduced mass")
+
+
+class LoadParams(Strict):
+    """Load side: rod and a lumped rudder stage (rudder angle = rod position / arm)."""
+
+    rod_mass_kg: float = Field(gt=0)
+    rudder_arm_mm: float = Field(gt=0, description="lever from rod travel to rudder angle")
+    rudder_inertia_kgm2: float = Field(ge=0, description="rudder shaft + inertia disk")
+    viscous_Ns_per_m: float = Field(ge=0, description="load-side viscous damping")
+
+
+class SensorChannel(Strict):
+    """One measurement channel, in the channel's SI unit (rad/s, rad, m, m/s, A, N, rad)."""
+
+    resolution: float = Field(default=0.0, ge=0, description="quantum, 0 = not quantised")
+    noise_std: float = Field(default=0.0, ge=0, description="Gaussian noise standard deviation")
+    offset: float = Field(default=0.0, description="constant bias")
+    gap_width: float = Field(default=0.0, ge=0, description="total play read through, 0 = none")
+
+
+class SensorParams(Strict):
+    """Every channel the controllers can see (see emasim.interface); ideal by default."""
+
+    speed: SensorChannel = SensorChannel()
+    angle: SensorChannel = SensorChannel()
+    position: SensorChannel = SensorChannel()
+    velocity: SensorChannel = SensorChannel()
+    id: SensorChannel = SensorChannel()
+    iq: SensorChannel = SensorChannel()
+    force: SensorChannel = SensorChannel()
+    rudder: SensorChannel = SensorChannel()
+
+    def pack(self) -> np.ndarray:
+        """The (N_MEAS x 4) table read by emasim.plant.sensors.measure."""
+        table = np.zeros((len(MEASUREMENT_NAMES), 4))
+        for i, name in enumerate(MEASUREMENT_NAMES):
+            ch = getattr(self, name)
+            table[i] = (ch.resolution, ch.noise_std, ch.offset, 0.5 * ch.gap_width)
+        return table
+
+
+class PlantParams(Strict):
+    """The whole actuator: motor, drive train, friction, backlash, load."""
+
+    motor: MotorParams
+    drivetrain: DrivetrainParams
+    friction: FrictionParams
+    backlash: BacklashParams
+    load: LoadParams
+
+    @property
+    def ratio_m_per_rad(self) -> float:
+        """K = L/(2 pi N): rod metres per motor radian."""
+        d = self.drivetrain
+        return transmission_ratio(d.screw_lead_mm * MM, d.gear_ratio)
+
+    @property
+    def load_mass_kg(self) -> float:
+        """Load-side mass: rod plus rudder inertia reflected through the arm, J_r / r^2."""
+        ld = self.load
+        return ld.rod_mass_kg + ld.rudder_inertia_kgm2 / (ld.rudder_arm_mm * MM) ** 2
+
+    @property
+    def total_inertia_kgm2(self) -> float:
+        """Motor inertia plus load mass reflected to the motor shaft, J + M K^2 (kg*m^2)."""
+        return self.motor.inertia_kgm2 + self.load_mass_kg * self.ratio_m_per_rad**2
+
+    @property
+    def torque_constant_Nm_per_A(self) -> float:
+        """kt = 1.5 np psi_f."""
+        return 1.5 * self.motor.pole_pairs * self.motor.flux_linkage_Wb
+
+    def pack(self) -> np.ndarray:
+        """The flat SI parameter array read by the compiled plant."""
+        m, d, f, b, ld = self.motor, self.drivetrain, self.friction, self.backlash, self.load
+        k = self.ratio_m_per_rad
+        motor_mass = m.inertia_kgm2 / k**2  # motor inertia seen at the nut, kg
+        reduced = motor_mass * self.load_mass_kg / (motor_mass + self.load_mass_kg)
+        p = np.zeros(A.N_PARAMS)
+        p[A.P_RS] = m.resistance_ohm
+        p[A.P_LD] = m.inductance_d_H
+        p[A.P_LQ] = m.inductance_q_H
+        p[A.P_PSI] = m.flux_linkage_Wb
+        p[A.P_NP] = m.pole_pairs
+        p[A.P_J] = m.inertia_kgm2
+        p[A.P_B] = m.viscous_Nms_per_rad
+        p[A.P_K] = k
+        p[A.P_ETA] = d.gear_efficiency * d.screw_efficiency
+        p[A.P_FRICTION] = {"none": A.FRICTION_NONE, "coulomb": A.FRICTION_COULOMB,
+                           "lugre": A.FRICTION_LUGRE}[f.model]
+        p[A.P_TC] = f.coulomb_Nm
+        p[A.P_TS] = f.static_Nm
+        p[A.P_WS] = f.stribeck_speed_rad_s
+        p[A.P_SIGMA0] = f.bristle_stiffness_Nm_per_rad
+        p[A.P_SIGMA1] = bristle_damping_for_ratio(
+            f.bristle_damping_ratio, f.bristle_stiffness_Nm_per_rad, m.inertia_kgm2,
+            f.viscous_Nms_per_rad,
+        )
+        p[A.P_SIGMA2] = f.viscous_Nms_per_rad
+        p[A.P_W_SMOOTH] = f.smoothing_speed_rad_s
+        p[A.P_HALF_GAP] = 0.5 * b.width_mm * MM
+        p[A.P_KB] = b.stiffness_N_per_m
+        p[A.P_CB] = 2.0 * b.damping_ratio * math.sqrt(b.stiffness_N_per_m * reduced)
+        p[A.P_ML] = self.load_mass_kg
+        p[A.P_CL] = ld.viscous_Ns_per_m
+        p[A.P_ARM] = ld.rudder_arm_mm * MM
+        p[A.P_UDC] = m.dc_bus_V
+        return p

@@ -1,0 +1,124 @@
+"""Named parameter sets: the paper's motor, the SEA805 actuator and our lumped rudder stage.
+
+Every number is here, once, with where it comes from. "paper" means Ding & Zhou, Actuators 2025,
+14(11), 526; "ours" means the paper is silent and the value is our engineering choice (see
+docs/assumptions in the README). Scenario files start from :data:`PRESETS` and override fields.
+"""
+
+import math
+
+from .parameters import (
+    BacklashParams,
+    DrivetrainParams,
+    FrictionParams,
+    LoadParams,
+    MotorParams,
+    PlantParams,
+    SensorChannel,
+    SensorParams,
+)
+
+
+def paper_motor() -> MotorParams:
+    """The paper's speed-loop PMSM (section 2.3.1), with the SEA805 drive's limits."""
+    return MotorParams(
+        resistance_ohm=0.0485,  # paper
+        inductance_d_H=3.752e-4,  # paper
+        inductance_q_H=4.148e-4,  # paper
+        flux_linkage_Wb=0.1194,  # paper ("leakage flux coefficient")
+        inertia_kgm2=0.0027,  # paper
+        viscous_Nms_per_rad=4.924e-4,  # paper
+        pole_pairs=4,  # paper
+        dc_bus_V=560.0,  # paper
+        max_current_A=58.0,  # paper, section 3: the SEA805 motor's drive current
+        max_speed_rpm=3000.0,  # ours: above the 1800 rpm that the rated 240 mm/s needs
+    )
+
+
+def sea805_drivetrain() -> DrivetrainParams:
+    """SEA805 electromechanical actuator (paper section 3): direct drive onto an 8 mm lead PRSM."""
+    return DrivetrainParams(
+        gear_ratio=1.0,  # paper: the EAS has no variable-speed stage between motor and screw
+        gear_efficiency=1.0,
+        screw_lead_mm=8.0,  # paper
+        screw_efficiency=0.9,  # ours: typical planetary roller screw efficiency
+        stroke_mm=250.0,  # paper
+    )
+
+
+def motor_lugre_friction() -> FrictionParams:
+    """LuGre friction on the motor/screw shaft (ours: the paper gives no values).
+
+    Coulomb 0.3 N*m and stiction 0.45 N*m (about 1 % of the 41 N*m peak torque), Stribeck speed
+    1 rad/s, bristle stiffness 1500 N*m/rad (presliding travel Tc/sigma0 = 0.2 mrad), critically
+    damped bristle mode. The bristle eigenvalue is then about -5e5 1/s at 1000 rpm.
+    """
+    return FrictionParams(
+        model="lugre",
+        coulomb_Nm=0.3,
+        static_Nm=0.45,
+        stribeck_speed_rad_s=1.0,
+        bristle_stiffness_Nm_per_rad=1500.0,
+        bristle_damping_ratio=1.0,
+        viscous_Nms_per_rad=1e-3,
+        smoothing_speed_rad_s=0.1,
+    )
+
+
+def drivetrain_backlash() -> BacklashParams:
+    """Total backlash of screw and joints: the paper's 0.1 mm width (Fig. 8), our stiffness."""
+    return BacklashParams(
+        width_mm=0.1,  # paper, position-loop simulation
+        stiffness_N_per_m=1.0e8,  # ours: 100 N/um, typical PRSM + mount axial stiffness
+        damping_ratio=0.1,  # ours: lets impacts settle within a few contact periods
+    )
+
+
+def lumped_rudder() -> LoadParams:
+    """Lumped rudder stage until the linkage lands (ours).
+
+    The arm maps +-125 mm of rod travel to +-30 deg of rudder (125 mm / (pi/6) = 238.7 mm).
+    The rudder shaft with its inertia disk is 1.5 kg*m^2 (26 kg at the rod), the rod 3 kg.
+    """
+    return LoadParams(
+        rod_mass_kg=3.0,
+        rudder_arm_mm=238.73,
+        rudder_inertia_kgm2=1.5,
+        viscous_Ns_per_m=50.0,
+    )
+
+
+def sea805() -> PlantParams:
+    """The paper's motor on the SEA805 drive train, LuGre friction, 0.1 mm backlash, rudder."""
+    return PlantParams(
+        motor=paper_motor(),
+        drivetrain=sea805_drivetrain(),
+        friction=motor_lugre_friction(),
+        backlash=drivetrain_backlash(),
+        load=lumped_rudder(),
+    )
+
+
+PRESETS = {"sea805": sea805}
+
+
+def bench_sensors() -> SensorParams:
+    """The paper's test-bench sensors (section 3), as quantisation and noise.
+
+    Rudder: HEIDENHAIN encoder, accuracy +-60 arcsec, read as uniform error (std 60"/sqrt(3)).
+    Rod position: magnetostrictive sensor, 16 bit over the 250 mm stroke (0.0015 % = 3.8 um).
+    Rod force: 0.2 % of the 50 kN range, as uniform error (std 100 N/sqrt(3)).
+    Motor speed and currents: the drive's own resolver and shunts (ours: 0.1 rad/s, 0.05 A noise).
+    """
+    arcsec = math.pi / (180.0 * 3600.0)
+    return SensorParams(
+        rudder=SensorChannel(resolution=2.0 * math.pi / 2**20, noise_std=60 * arcsec / math.sqrt(3)),
+        position=SensorChannel(resolution=0.250 / 2**16),
+        force=SensorChannel(noise_std=100.0 / math.sqrt(3)),
+        speed=SensorChannel(noise_std=0.1),
+        id=SensorChannel(noise_std=0.05),
+        iq=SensorChannel(noise_std=0.05),
+    )
+
+
+SENSOR_PRESETS = {"ideal": SensorParams, "bench": bench_sensors}

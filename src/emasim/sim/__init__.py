@@ -1,0 +1,1 @@
+"""Time stepping: the compiled sampled-data engine, its scipy reference, and results."""

@@ -1,0 +1,72 @@
+"""The same sampled-data system on scipy's stiff solvers, for validation only.
+
+The controllers, sensors and current loop run exactly as in the engine (the same compiled
+``control_tick``); between ticks the voltages are held and the plant's right-hand side,
+bristle state included as an ordinary state, is integrated by ``solve_ivp`` (Radau or LSODA)
+at a tight tolerance. It is slow (one solver call per tick) and exists so tests and benchmarks
+can measure the engine's error. Users' runs never go through it.
+"""
+
+import time
+
+import numba as nb
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from ..control.current import N_STATE as N_CURRENT_STATE
+from ..interface import N_MEAS, N_OUT, N_REF
+from ..plant import actuator as A
+from ..signals import signal_value
+from .engine import LOOP_POSITION, LOOP_SPEED, N_COLUMNS, TRACE_COLUMNS, control_tick, record
+from .result import Result
+
+# absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s
+ATOL = np.array([1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12])
+
+
+@nb.njit(cache=True)
+def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, t_end):
+    """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
+    boundary belongs to the next tick, as it does in the engine."""
+    t_in = min(t, t_end - 1e-9 * (abs(t_end) + 1e-3))
+    dx = np.empty(A.N_STATE)
+    A.rhs(x, u_d, u_q, signal_value(motor_load, t_in), signal_value(rod_load, t_in), p, dx)
+    return dx
+
+
+def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Result:
+    """Run ``setup`` with ``solve_ivp(method, rtol)`` between ticks (see module docstring)."""
+    n = setup.n_ticks
+    ts = setup.sample_period_s
+    trace = np.full(((n + setup.record_every - 1) // setup.record_every, N_COLUMNS), np.nan)
+    x = setup.x0.astype(np.float64).copy()
+    position = setup.position if setup.position is not None else setup.speed
+    pos_state = position.state.copy()
+    speed_state = setup.speed.state.copy()
+    cur_state = np.zeros(N_CURRENT_STATE)
+    gap = setup.initial_gap_state()
+    loop = LOOP_SPEED if setup.position is None else LOOP_POSITION
+    meas, ref, out = np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT)
+    np.random.seed(setup.seed)
+    start = time.perf_counter()
+    for k in range(n):
+        t = k * ts
+        u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
+            t, x, setup.plant, setup.sensors, gap, loop, setup.reference, position.function,
+            position.params, pos_state, setup.speed.function, setup.speed.params, speed_state,
+            setup.current_params, cur_state, ts, meas, ref, out,
+        )
+        if k % setup.record_every == 0:
+            record(
+                trace[k // setup.record_every], t, x, setup.plant, setup.motor_load,
+                setup.rod_load, u_d, u_q, speed_ref, iq_ref, position_ref, meas,
+            )
+        sol = solve_ivp(
+            _rhs, (t, t + ts), x, method=method, rtol=rtol, atol=ATOL,
+            args=(u_d, u_q, setup.plant, setup.motor_load, setup.rod_load, t + ts),
+        )
+        if not sol.success:
+            raise RuntimeError(f"reference solver failed at t = {t:g} s: {sol.message}")
+        x = sol.y[:, -1].copy()
+    wall = time.perf_counter() - start
+    return Result(TRACE_COLUMNS, trace, meta={"simulation_wall_s": wall, "solver": method})

@@ -1,0 +1,65 @@
+"""One run, compiled to the arrays the engine reads (built by a scenario or by hand)."""
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from ..control.slot import Compiled
+from ..interface import N_MEAS
+from ..plant import actuator as A
+from ..plant.sensors import true_values
+
+
+@dataclass
+class Setup:
+    """Plant, controllers, signals and timing of one run, as flat arrays (SI units).
+
+    ``position`` is None for a speed-loop run (the reference is then a motor speed in rad/s);
+    otherwise the reference is a rod position in m. Controller states are copied at the start
+    of every run, so one Setup can be run many times.
+    """
+
+    plant: np.ndarray
+    sample_period_s: float
+    substeps: int
+    duration_s: float
+    reference: np.ndarray
+    motor_load: np.ndarray
+    rod_load: np.ndarray
+    speed: Compiled
+    current_params: np.ndarray
+    position: Compiled | None = None
+    sensors: np.ndarray = field(default_factory=lambda: np.zeros((N_MEAS, 4)))
+    record_every: int = 10
+    seed: int = 0
+    x0: np.ndarray = field(default_factory=lambda: np.zeros(A.N_STATE))
+    limits: np.ndarray = field(default_factory=lambda: np.full(A.N_STATE, 1e12))
+
+    def __post_init__(self):
+        for name in ("sample_period_s", "duration_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {value}")
+        if self.substeps < 1 or self.record_every < 1:
+            raise ValueError("substeps and record_every must be whole numbers >= 1")
+
+    @property
+    def n_ticks(self) -> int:
+        """Number of control ticks, round(duration / Ts)."""
+        return int(round(self.duration_s / self.sample_period_s))
+
+    @property
+    def step_s(self) -> float:
+        """Integration sub-step h = Ts / substeps."""
+        return self.sample_period_s / self.substeps
+
+    def with_(self, **changes) -> "Setup":
+        """A copy with some fields replaced."""
+        return replace(self, **changes)
+
+    def initial_gap_state(self) -> np.ndarray:
+        """Start of every sensor's play operator: the channel's true initial value."""
+        values = np.zeros(N_MEAS)
+        true_values(self.x0, self.plant, values)
+        return values
