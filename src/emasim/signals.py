@@ -127,6 +127,12 @@ def encode(terms: list, scale: float = 1.0) -> np.ndarray:
     return np.asarray(flat, dtype=np.float64)
 
 
+def combine(*encoded: np.ndarray) -> np.ndarray:
+    """The sum of several encoded signals, as one encoded signal."""
+    n_terms = sum(int(sig[0]) for sig in encoded)
+    return np.concatenate([[float(n_terms)], *(sig[1:] for sig in encoded)])
+
+
 ZERO = encode([])  # the signal that is 0 at all times
 
 

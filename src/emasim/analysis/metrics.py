@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.signal import windows
 
 __all__ = [
     "Chattering",
@@ -593,7 +592,7 @@ def chattering(
     dt = float(np.median(np.diff(tw)))
     n = int((tw[-1] - tw[0]) // dt) + 1
     uniform = np.interp(tw[0] + dt * np.arange(n), tw, residual)
-    spectrum = np.abs(np.fft.rfft(uniform * windows.hann(n, sym=False)))
+    spectrum = np.abs(np.fft.rfft(uniform * np.hanning(n + 1)[:-1]))
     k = 1 + int(np.argmax(spectrum[1:]))
     return Chattering(amplitude=amplitude, frequency_Hz=_parabolic_peak(spectrum, k) / (n * dt))
 

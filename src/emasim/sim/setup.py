@@ -5,9 +5,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..control.slot import Compiled
+from ..control.slot import Compiled, PlantFacts
 from ..interface import N_MEAS
 from ..plant import actuator as A
+from ..plant.parameters import RPM
 from ..plant.sensors import true_values
 
 
@@ -63,3 +64,21 @@ class Setup:
         values = np.zeros(N_MEAS)
         true_values(self.x0, self.plant, values)
         return values
+
+
+def plant_facts(plant) -> PlantFacts:
+    """What a controller design may know of a :class:`~emasim.plant.parameters.PlantParams`."""
+    m = plant.motor
+    return PlantFacts(
+        inertia_kgm2=plant.total_inertia_kgm2,
+        torque_constant_Nm_per_A=plant.torque_constant_Nm_per_A,
+        ratio_m_per_rad=plant.ratio_m_per_rad,
+        max_current_A=m.max_current_A,
+        max_speed_rad_s=m.max_speed_rpm * RPM,
+        resistance_ohm=m.resistance_ohm,
+        inductance_d_H=m.inductance_d_H,
+        inductance_q_H=m.inductance_q_H,
+        flux_linkage_Wb=m.flux_linkage_Wb,
+        pole_pairs=m.pole_pairs,
+        dc_bus_V=m.dc_bus_V,
+    )

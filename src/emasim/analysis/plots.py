@@ -1,0 +1,48 @@
+"""Figures of a run: the response, the inner loop's command and the motor current."""
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only; no display is needed or assumed
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+RPM_PER_RAD_S = 30.0 / np.pi
+
+
+def plot_result(result, title: str | None = None):
+    """Three stacked panels sharing time: the controlled output and its reference; in a position
+    run the motor speed and its command, in a speed run the torques on the shaft; the q-axis
+    current and its command."""
+    t = result.t
+    position_run = bool(np.isfinite(result["position_ref_m"]).any())
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
+    if position_run:
+        axes[0].plot(t, 1e3 * result["position_ref_m"], "k--", lw=1, label="reference")
+        axes[0].plot(t, 1e3 * result["actuator_position_m"], lw=1.4, label="rod position")
+        axes[0].set_ylabel("position (mm)")
+    else:
+        axes[0].plot(t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=1, label="reference")
+        axes[0].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.4, label="motor speed")
+        axes[0].set_ylabel("speed (rpm)")
+    if position_run:
+        axes[1].plot(t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=0.8,
+                     label="speed command")
+        axes[1].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.0, label="motor speed")
+        axes[1].set_ylabel("speed (rpm)")
+    else:
+        axes[1].plot(t, result["torque_Nm"], lw=1.0, label="electromagnetic")
+        axes[1].plot(t, result["load_torque_Nm"], lw=1.0, label="load (motor shaft)")
+        axes[1].plot(t, result["friction_torque_Nm"], lw=1.0, label="friction")
+        axes[1].set_ylabel("torque (N·m)")
+    axes[2].plot(t, result["iq_ref_A"], "k--", lw=0.8, label="iq command")
+    axes[2].plot(t, result["iq_A"], lw=1.0, label="iq")
+    axes[2].set_ylabel("current (A)")
+    axes[2].set_xlabel("time (s)")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    name = title or result.scenario.get("name", "")
+    if name:
+        axes[0].set_title(name)
+    return fig

@@ -1,0 +1,1 @@
+"""The paper's experiments as TOML files, and the validated schema that reads them."""

@@ -1,0 +1,141 @@
+"""Find, read and override scenarios; turn every validation failure into one clear line."""
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+from pydantic import BaseModel, ValidationError
+
+from ..control.registry import CONTROLLERS
+from ..errors import InputError
+from .schema import Scenario
+
+
+def builtin_scenarios() -> dict[str, Path]:
+    """Name -> path of every scenario shipped with the package."""
+    folder = resources.files(__package__)
+    return {p.name[:-5]: Path(str(p)) for p in folder.iterdir() if p.name.endswith(".toml")}
+
+
+def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
+    """The raw TOML table of a built-in scenario name or a file path, and where it came from."""
+    shipped = builtin_scenarios()
+    if name_or_path in shipped:
+        path = shipped[name_or_path]
+    else:
+        path = Path(name_or_path)
+        if path.suffix != ".toml" or not path.is_file():
+            raise InputError(
+                f"scenario: unknown scenario '{name_or_path}'; choose one of: "
+                f"{', '.join(sorted(shipped))}, or give the path of a .toml file"
+            )
+    try:
+        return tomllib.loads(path.read_text()), str(path)
+    except tomllib.TOMLDecodeError as err:
+        raise InputError(f"scenario: {path} is not valid TOML: {err}") from None
+
+
+def apply_controller_choice(raw: dict, choice: str) -> None:
+    """Apply ``LOOP=NAME`` (e.g. ``speed=pi``): that loop's controller, with default gains."""
+    loop, sep, name = choice.partition("=")
+    if not sep or not name:
+        raise InputError(f"--controller: expected LOOP=NAME, got '{choice}'")
+    if loop not in CONTROLLERS:
+        raise InputError(f"--controller: unknown loop '{loop}'; loops: {', '.join(CONTROLLERS)}")
+    if name not in CONTROLLERS[loop]:
+        other = [lp for lp, names in CONTROLLERS.items() if name in names]
+        hint = f" ('{name}' is a {other[0]}-loop controller)" if other else ""
+        raise InputError(
+            f"--controller: unknown {loop}-loop controller '{name}'{hint}; "
+            f"choose one of: {', '.join(CONTROLLERS[loop])}"
+        )
+    raw.setdefault("controllers", {})[loop] = {"name": name}
+
+
+def apply_setting(raw: dict, setting: str) -> None:
+    """Apply ``dotted.key=value``; the value is read as TOML (number, bool, string, array)."""
+    key, sep, text = setting.partition("=")
+    if not sep or not key:
+        raise InputError(f"--set: expected KEY=VALUE, got '{setting}'")
+    try:
+        value = tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text
+    table = raw
+    parts = key.split(".")
+    for part in parts[:-1]:
+        child = table.setdefault(part, {})
+        if isinstance(child, str):  # a preset name given as a string: open it up as a table
+            child = table[part] = {"preset": child}
+        if not isinstance(child, dict):
+            raise InputError(f"--set {key}: '{part}' is a value, not a section")
+        table = child
+    table[parts[-1]] = value
+
+
+def load_scenario(
+    name_or_path: str, settings: list[str] = (), controllers: list[str] = ()
+) -> Scenario:
+    """Read, override and validate a scenario; raise InputError naming the field on failure."""
+    raw, source = read_scenario_file(name_or_path)
+    for choice in controllers:
+        apply_controller_choice(raw, choice)
+    for setting in settings:
+        apply_setting(raw, setting)
+    return validate_scenario(raw, source)
+
+
+def validate_scenario(raw: dict, source: str = "scenario") -> Scenario:
+    """Validate a raw scenario table, turning pydantic's errors into one InputError."""
+    try:
+        return Scenario.model_validate(raw)
+    except ValidationError as err:
+        raise InputError(f"{source}: " + "; ".join(describe_errors(err))) from None
+    except ValueError as err:  # raised by preset resolution before field validation
+        raise InputError(f"{source}: {err}") from None
+
+
+def describe_errors(err: ValidationError) -> list[str]:
+    """One 'dotted.path: what is wrong (allowed ...)' line per pydantic error."""
+    lines = []
+    for e in err.errors(include_url=False):
+        loc = [str(part) for part in e["loc"] if not _is_union_tag(part)]
+        path = ".".join(loc) or "scenario"
+        if e["type"] == "extra_forbidden":
+            allowed = _allowed_keys(loc[:-1])
+            lines.append(f"{path}: unknown key" + (f"; allowed: {', '.join(allowed)}" if allowed else ""))
+        else:
+            msg = e["msg"].removeprefix("Value error, ")
+            got = e.get("input")
+            shown = "" if isinstance(got, dict | list) else f" (got {got!r})"
+            lines.append(f"{path}: {msg}{shown}")
+    return lines
+
+
+def _is_union_tag(part) -> bool:
+    """pydantic puts a union member's tag (e.g. 'step') into the location; leave it out."""
+    return isinstance(part, str) and part in {"constant", "step", "sine", "ramp", "table"}
+
+
+def _allowed_keys(loc: list[str]) -> list[str]:
+    """The field names of the model at a location inside Scenario (best effort)."""
+    model: type[BaseModel] | None = Scenario
+    for part in loc:
+        if model is None or part.isdigit():
+            continue
+        field = model.model_fields.get(part)
+        if field is None:
+            return []
+        model = _model_of(field.annotation)
+    return list(model.model_fields) if model is not None else []
+
+
+def _model_of(annotation) -> type[BaseModel] | None:
+    """The BaseModel class inside an annotation like ``X``, ``X | None`` or ``list[X]``."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()):
+        found = _model_of(arg)
+        if found is not None:
+            return found
+    return None

@@ -1,0 +1,207 @@
+"""Scenario files: what one run is, validated field by field.
+
+A scenario is a TOML file (see the files beside this module). Plant and sensor sections start
+from a named preset (:mod:`emasim.plant.presets`) and override single fields; references and
+loads are lists of signal terms (:mod:`emasim.signals`) in the unit named by their key. Every
+value is checked: unknown keys, NaN/inf and out-of-range values are rejected with the field's
+dotted path and the allowed range. :meth:`Scenario.setup` compiles a scenario into the arrays
+of a :class:`emasim.sim.setup.Setup`.
+"""
+
+import math
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from ..control.current import CurrentPI
+from ..control.pid import PositionPID, SpeedPI
+from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
+from ..plant.presets import PRESETS, SENSOR_PRESETS
+from ..plant import actuator as A
+from ..signals import Term, combine, encode
+from ..sim.setup import Setup, plant_facts
+
+
+class Solver(Strict):
+    """Sample period of the controllers, integration sub-step, and recording period."""
+
+    sample_period_s: float = Field(default=1e-4, gt=0, le=0.01)
+    step_s: float = Field(default=1e-5, gt=0, le=0.01)
+    record_period_s: float = Field(default=1e-3, gt=0, le=1.0)
+
+    @model_validator(mode="after")
+    def _whole_multiples(self):
+        for name, value, of in (
+            ("step_s", self.step_s, self.sample_period_s),
+            ("sample_period_s", self.sample_period_s, self.record_period_s),
+        ):
+            ratio = of / value
+            if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6 * ratio:
+                owner = "sample_period_s" if name == "step_s" else "record_period_s"
+                raise ValueError(
+                    f"{owner} ({of:g} s) must be a whole multiple (>= 1) of {name} ({value:g} s)"
+                )
+        return self
+
+    @property
+    def substeps(self) -> int:
+        return round(self.sample_period_s / self.step_s)
+
+    @property
+    def record_every(self) -> int:
+        return round(self.record_period_s / self.sample_period_s)
+
+
+class Reference(Strict):
+    """The set-point: exactly one of a motor speed, a rod position or a rudder angle."""
+
+    speed_rpm: list[Term] | None = None
+    position_mm: list[Term] | None = None
+    rudder_deg: list[Term] | None = None
+
+    @model_validator(mode="after")
+    def _exactly_one(self):
+        given = [k for k in ("speed_rpm", "position_mm", "rudder_deg") if getattr(self, k)]
+        if len(given) != 1:
+            raise ValueError(
+                "give exactly one of speed_rpm, position_mm, rudder_deg "
+                f"(got {', '.join(given) or 'none'})"
+            )
+        return self
+
+    @property
+    def loop(self) -> str:
+        """The outermost loop this reference closes: 'speed' or 'position'."""
+        return "speed" if self.speed_rpm else "position"
+
+    def encode(self, plant: PlantParams) -> np.ndarray:
+        """SI signal: motor speed (rad/s) or rod position (m); rudder angles go through the arm."""
+        if self.speed_rpm:
+            return encode(self.speed_rpm, RPM)
+        if self.position_mm:
+            return encode(self.position_mm, MM)
+        return encode(self.rudder_deg, math.radians(1.0) * plant.load.rudder_arm_mm * MM)
+
+
+class Load(Strict):
+    """External loads, summed: on the motor shaft, on the rod, and on the rudder shaft."""
+
+    motor_torque_Nm: list[Term] = []
+    rod_force_N: list[Term] = []
+    rudder_torque_Nm: list[Term] = []
+
+    def encode(self, plant: PlantParams) -> tuple[np.ndarray, np.ndarray]:
+        """(motor torque signal in N*m, rod force signal in N); rudder torque / arm = force."""
+        arm_m = plant.load.rudder_arm_mm * MM
+        rod = combine(encode(self.rod_force_N), encode(self.rudder_torque_Nm, 1.0 / arm_m))
+        return encode(self.motor_torque_Nm), rod
+
+
+class Controllers(Strict):
+    """One controller per loop; the position loop only when the reference is a position."""
+
+    speed: SpeedPI = SpeedPI()
+    position: PositionPID | None = None
+    current: CurrentPI = CurrentPI()
+
+
+def _merge(base: dict, override: dict) -> dict:
+    """Recursive dict update: override's leaves replace base's."""
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _from_preset(section, presets: dict, what: str) -> dict:
+    """A section given as a preset name, or a table with an optional ``preset`` key + overrides."""
+    if isinstance(section, str):
+        section = {"preset": section}
+    if not isinstance(section, dict):
+        return section  # let pydantic report the wrong type
+    section = dict(section)
+    name = section.pop("preset", next(iter(presets)))
+    if name not in presets:
+        raise ValueError(f"{what}.preset: unknown preset '{name}'; choose one of: {', '.join(presets)}")
+    return _merge(presets[name]().model_dump(), section)
+
+
+class Scenario(Strict):
+    """One experiment: plant, sensors, controllers, reference, loads, timing."""
+
+    name: str = Field(min_length=1, max_length=80)
+    description: str = ""
+    duration_s: float = Field(gt=0, le=3600)
+    seed: int = Field(default=0, ge=0, le=2**32 - 1)
+    solver: Solver = Solver()
+    plant: PlantParams
+    sensors: SensorParams = SensorParams()
+    controllers: Controllers = Controllers()
+    reference: Reference
+    load: Load = Load()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve_presets(cls, data):
+        if isinstance(data, dict):
+            data = dict(data)
+            data["plant"] = _from_preset(data.get("plant", {}), PRESETS, "plant")
+            data["sensors"] = _from_preset(data.get("sensors", {}), SENSOR_PRESETS, "sensors")
+        return data
+
+    @model_validator(mode="after")
+    def _loops_match(self):
+        loop = self.reference.loop
+        if loop == "position" and self.controllers.position is None:
+            raise ValueError(
+                "the reference is a position, so controllers.position is needed "
+                "(e.g. --controller position=pid)"
+            )
+        if loop == "speed" and self.controllers.position is not None:
+            raise ValueError(
+                "the reference is a speed (reference.speed_rpm), so the position loop is open: "
+                "remove controllers.position"
+            )
+        if self.duration_s < self.solver.sample_period_s:
+            raise ValueError("duration_s must be at least one solver.sample_period_s")
+        return self
+
+    def setup(self) -> Setup:
+        """Compile this scenario into the arrays the engine runs."""
+        facts = plant_facts(self.plant)
+        ts = self.solver.sample_period_s
+        motor_load, rod_load = self.load.encode(self.plant)
+        c = self.controllers
+        stroke_m = self.plant.drivetrain.stroke_mm * MM
+        return Setup(
+            plant=self.plant.pack(),
+            sample_period_s=ts,
+            substeps=self.solver.substeps,
+            duration_s=self.duration_s,
+            reference=self.reference.encode(self.plant),
+            motor_load=motor_load,
+            rod_load=rod_load,
+            speed=c.speed.build(facts, ts),
+            position=c.position.build(facts, ts) if c.position is not None else None,
+            current_params=c.current.pack(facts)[0],
+            sensors=self.sensors.pack(),
+            record_every=self.solver.record_every,
+            seed=self.seed,
+            limits=state_limits(self.plant, stroke_m),
+        )
+
+
+def state_limits(plant: PlantParams, stroke_m: float) -> np.ndarray:
+    """Bounds beyond which a state means a runaway simulation (far outside any real motion)."""
+    m = plant.motor
+    limits = np.empty(A.N_STATE)
+    limits[A.X_ID] = limits[A.X_IQ] = 20.0 * m.max_current_A
+    limits[A.X_WM] = 20.0 * m.max_speed_rpm * RPM
+    limits[A.X_THETA] = 1e3 * stroke_m / plant.ratio_m_per_rad
+    limits[A.X_Z] = 1e3 * max(plant.friction.static_Nm, 1e-3) / plant.friction.bristle_stiffness_Nm_per_rad
+    limits[A.X_XL] = 1e3 * stroke_m
+    limits[A.X_VL] = 20.0 * m.max_speed_rpm * RPM * plant.ratio_m_per_rad
+    return limits

@@ -1,0 +1,108 @@
+"""Shared builders for the plant-level validation tests (a plain module, not a conftest).
+
+Everything is built by hand from the public pieces (PlantParams, the packed parameter array,
+the controller configs and :class:`emasim.sim.setup.Setup`) so the tests do not depend on a
+scenario layer.
+"""
+
+import math
+
+import numba as nb
+import numpy as np
+
+from emasim.control.current import CurrentPI
+from emasim.control.pid import SpeedPI
+from emasim.control.slot import CONTROLLER_SIG, Compiled, PlantFacts
+from emasim.interface import O_RATE, O_VALUE
+from emasim.plant import actuator as A
+from emasim.plant.parameters import PlantParams
+from emasim.plant.presets import sea805
+from emasim.signals import ZERO, Step, encode
+from emasim.sim.setup import Setup
+
+RPM = math.pi / 30.0  # rad/s per rpm
+
+
+def facts_of(plant: PlantParams) -> PlantFacts:
+    """What a controller design may know of ``plant`` (SI units), assembled by hand."""
+    m = plant.motor
+    return PlantFacts(
+        inertia_kgm2=plant.total_inertia_kgm2,
+        torque_constant_Nm_per_A=plant.torque_constant_Nm_per_A,
+        ratio_m_per_rad=plant.ratio_m_per_rad,
+        max_current_A=m.max_current_A,
+        max_speed_rad_s=m.max_speed_rpm * RPM,
+        resistance_ohm=m.resistance_ohm,
+        inductance_d_H=m.inductance_d_H,
+        inductance_q_H=m.inductance_q_H,
+        flux_linkage_Wb=m.flux_linkage_Wb,
+        pole_pairs=m.pole_pairs,
+        dc_bus_V=m.dc_bus_V,
+    )
+
+
+def frictionless_sea805(**packed_overrides) -> tuple[PlantParams, np.ndarray]:
+    """The sea805 preset with friction model "none"; returns (params, packed SI array).
+
+    ``packed_overrides`` maps parameter index constants' names without the ``P_`` prefix
+    (e.g. ``B=0.0``, ``ETA=1.0``) to values written into the packed array.
+    """
+    plant = sea805()
+    plant.friction.model = "none"
+    p = plant.pack()
+    for name, value in packed_overrides.items():
+        p[getattr(A, f"P_{name}")] = value
+    return plant, p
+
+
+@nb.njit(CONTROLLER_SIG)
+def zero_current_command(state, params, meas, ref, ts, out):
+    """A speed "controller" that always asks for iq* = 0 (an electrically inert motor)."""
+    out[O_VALUE] = 0.0
+    out[O_RATE] = 0.0
+
+
+def inert_speed_controller() -> Compiled:
+    """:func:`zero_current_command` ready for the engine."""
+    return Compiled(zero_current_command, np.zeros(1), np.zeros(1))
+
+
+def speed_setup(
+    p: np.ndarray,
+    facts: PlantFacts,
+    *,
+    ts: float,
+    duration_s: float,
+    substeps: int = 4,
+    speed_rpm: float = 0.0,
+    motor_load: np.ndarray = ZERO,
+    rod_load: np.ndarray = ZERO,
+    speed: Compiled | None = None,
+    current_facts: PlantFacts | None = None,
+    x0: np.ndarray | None = None,
+    record_every: int = 1,
+) -> Setup:
+    """A speed-loop run: step to ``speed_rpm`` at t = 0, SpeedPI unless ``speed`` is given.
+
+    ``current_facts`` (default ``facts``) is what the current loop is designed from, so a test
+    can give the controller a different idea of the plant than the plant itself.
+    """
+    cur_params, _ = CurrentPI().pack(current_facts or facts)
+    return Setup(
+        plant=p,
+        sample_period_s=ts,
+        substeps=substeps,
+        duration_s=duration_s,
+        reference=encode([Step(time_s=0.0, final=speed_rpm)], RPM),
+        motor_load=motor_load,
+        rod_load=rod_load,
+        speed=speed if speed is not None else SpeedPI().build(facts, ts),
+        current_params=cur_params,
+        record_every=record_every,
+        x0=np.zeros(A.N_STATE) if x0 is None else x0,
+    )
+
+
+def step_signal(time_s: float, value: float) -> np.ndarray:
+    """Encoded step from 0 to ``value`` (SI) at ``time_s``."""
+    return encode([Step(time_s=time_s, final=value)])
