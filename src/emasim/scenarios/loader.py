@@ -21,7 +21,7 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
     """The raw TOML table of a built-in scenario name or a file path, and where it came from."""
     shipped = builtin_scenarios()
     if name_or_path in shipped:
-        path = shipped[name_or_path]
+        path, source = shipped[name_or_path], name_or_path
     else:
         path = Path(name_or_path)
         if path.suffix != ".toml" or not path.is_file():
@@ -29,8 +29,9 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
                 f"scenario: unknown scenario '{name_or_path}'; choose one of: "
                 f"{', '.join(sorted(shipped))}, or give the path of a .toml file"
             )
+        source = str(path)
     try:
-        return tomllib.loads(path.read_text()), str(path)
+        return tomllib.loads(path.read_text()), source
     except tomllib.TOMLDecodeError as err:
         raise InputError(f"scenario: {path} is not valid TOML: {err}") from None
 
@@ -100,15 +101,17 @@ def describe_errors(err: ValidationError) -> list[str]:
     lines = []
     for e in err.errors(include_url=False):
         loc = [str(part) for part in e["loc"] if not _is_union_tag(part)]
-        path = ".".join(loc) or "scenario"
+        path = ".".join(loc)
+        prefix = f"{path}: " if path else ""
         if e["type"] == "extra_forbidden":
             allowed = _allowed_keys(loc[:-1])
-            lines.append(f"{path}: unknown key" + (f"; allowed: {', '.join(allowed)}" if allowed else ""))
+            keys = f"; allowed: {', '.join(allowed)}" if allowed else ""
+            lines.append(f"{prefix}unknown key{keys}")
         else:
             msg = e["msg"].removeprefix("Value error, ")
             got = e.get("input")
             shown = "" if isinstance(got, dict | list) else f" (got {got!r})"
-            lines.append(f"{path}: {msg}{shown}")
+            lines.append(f"{prefix}{msg}{shown}")
     return lines
 
 

@@ -212,8 +212,8 @@ def _divergence_message(setup, status) -> str:
     )
     return (
         f"simulation diverged at t = {tick * setup.sample_period_s:.6g} s: state '{name}' {what}. "
-        f"Reduce the integration step (now h = {setup.step_s:g} s, e.g. raise solver.substeps "
-        f"from {setup.substeps}) or check the gains."
+        f"Reduce the integration sub-step (solver.step_s, now {setup.step_s:g} s) "
+        "or check the gains."
     )
 
 

@@ -1,0 +1,89 @@
+"""Speed of the engine: real-time factors, start-up times, speed-up over the reference path.
+
+    python benchmarks/bench_engine.py [--json FILE]
+
+Real-time factor (RTF) = wall seconds of the simulation alone per simulated second (lower is
+faster; 0.05 means 20x faster than real time), best of three runs in this process with the
+compiled code loaded. Start-up: a fresh ``emasim run speed-step`` process end to end with a warm
+numba cache, and with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
+Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+from emasim.scenarios.loader import builtin_scenarios, load_scenario
+from emasim.sim.engine import simulate
+from emasim.sim.reference import simulate_reference
+
+
+def best_of(n, fn):
+    best = float("inf")
+    for _ in range(n):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def real_time_factors() -> dict:
+    out = {}
+    for name in sorted(builtin_scenarios()):
+        scenario = load_scenario(name)
+        setup = scenario.setup()
+        simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
+        out[name] = best_of(3, lambda s=setup: simulate(s)) / scenario.duration_s
+    return out
+
+
+def fresh_process_seconds(cache_dir: str | None) -> float:
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = cache_dir
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "emasim", "run", "speed-step", "--out", f"{out}/run"]
+        start = time.perf_counter()
+        subprocess.run(cmd, check=True, env=env, capture_output=True)
+        return time.perf_counter() - start
+
+
+def reference_speedup(duration_s: float = 0.05) -> dict:
+    setup = load_scenario("speed-step", settings=[f"duration_s={duration_s}"]).setup()
+    engine = best_of(3, lambda: simulate(setup))
+    start = time.perf_counter()
+    simulate_reference(setup)
+    reference = time.perf_counter() - start
+    return {"engine_s": engine, "reference_s": reference, "speedup": reference / engine}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", help="also write the figures to this file")
+    args = parser.parse_args()
+    results = {"real_time_factor": real_time_factors()}
+    fresh_process_seconds(None)  # make sure the default cache is warm
+    results["fresh_run_warm_cache_s"] = min(fresh_process_seconds(None) for _ in range(3))
+    with tempfile.TemporaryDirectory() as cold:
+        results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
+    results["reference"] = reference_speedup()
+    for name, rtf in results["real_time_factor"].items():
+        print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
+    print(f"fresh `emasim run speed-step`, warm cache: {results['fresh_run_warm_cache_s']:.2f} s")
+    print(f"fresh `emasim run speed-step`, cold cache: {results['fresh_run_cold_cache_s']:.2f} s")
+    ref = results["reference"]
+    print(
+        f"engine vs scipy Radau reference (0.05 s of speed-step): {ref['engine_s']:.4f} s vs "
+        f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
+    )
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()

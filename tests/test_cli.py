@@ -1,0 +1,115 @@
+"""The command line: a run folder with everything needed to repeat it, and one-line errors."""
+
+import json
+import tomllib
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from emasim.cli import app
+from emasim.scenarios.loader import validate_scenario
+from emasim.sim.result import Result
+from emasim.sim.runner import run_scenario
+
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, list(args))
+
+
+def test_list_shows_scenarios_and_controllers():
+    result = invoke("list")
+    assert result.exit_code == 0
+    for word in ("speed-step", "position-step", "speed", "position", "pid"):
+        assert word in result.output
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    out = tmp_path_factory.mktemp("runs") / "speed"
+    result = invoke("run", "speed-step", "--set", "duration_s=0.5", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    return out, result.output
+
+
+def test_run_writes_the_whole_folder(run_folder):
+    out, output = run_folder
+    assert {p.name for p in out.iterdir()} == {
+        "result.parquet", "metrics.json", "scenario.toml", "meta.json", "plot.png",
+    }
+    frame = pd.read_parquet(out / "result.parquet")
+    for column in ("t_s", "motor_speed_rad_s", "iq_A", "actuator_position_m", "rudder_angle_rad"):
+        assert column in frame.columns
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["emasim_version"] and meta["seed"] == 0 and meta["simulation_wall_s"] > 0
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["settling_time_s"] > 0 and "settling_time_s" in output
+    assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
+
+
+def test_the_saved_scenario_repeats_the_run_exactly(run_folder):
+    out, _ = run_folder
+    saved = Result.load(out)
+    scenario = validate_scenario(tomllib.loads((out / "scenario.toml").read_text()))
+    again = run_scenario(scenario)
+    assert np.array_equal(again.data, saved.data, equal_nan=True)
+    assert again.metrics == saved.metrics
+
+
+BAD_INPUTS = [
+    (["--set", "plant.motor.inertia_kgm2=-1"], "plant.motor.inertia_kgm2", "greater than 0"),
+    (["--set", "plant.motor.inertia_kgm2=0"], "plant.motor.inertia_kgm2", "greater than 0"),
+    (["--set", "plant.motor.resistance_ohm=0"], "plant.motor.resistance_ohm", "greater than 0"),
+    (["--set", "solver.step_s=-1e-5"], "solver.step_s", "greater than 0"),
+    (["--set", "solver.step_s=3e-5"], "step_s", "whole multiple"),
+    (["--set", "duration_s=0"], "duration_s", "greater than 0"),
+    (["--set", "duration_s=-2"], "duration_s", "greater than 0"),
+    (["--set", "duration_s=nan"], "duration_s", "finite"),
+    (["--set", "plant.backlash.width_mm=inf"], "plant.backlash.width_mm", "finite"),
+    (["--set", "duration_ms=2"], "duration_ms", "unknown key; allowed: name, description"),
+    (["--set", "plant.backlash.width_um=0.2"], "plant.backlash.width_um", "allowed: width_mm"),
+    (["--set", "plant.motor.colour=1"], "plant.motor.colour", "unknown key"),
+    (["--controller", "speed=fancy"], "speed-loop controller 'fancy'", "choose one of: pi"),
+    (["--controller", "torque=pi"], "unknown loop 'torque'", "speed, position"),
+    (["--controller", "speed=pid"], "position-loop controller", "choose one of: pi"),
+    (["--controller", "position=pid"], "controllers.position", "reference is a speed"),
+    (["--set", 'plant.preset="nope"'], "plant.preset", "sea805"),
+]
+
+
+@pytest.mark.parametrize("extra,field,allowed", BAD_INPUTS)
+def test_bad_input_is_one_clear_line_exit_2_and_nothing_written(tmp_path, extra, field, allowed):
+    out = tmp_path / "run"
+    result = invoke("run", "speed-step", *extra, "--out", str(out))
+    assert result.exit_code == 2
+    message = result.output.strip()
+    assert message.startswith("error:") and "Traceback" not in message
+    assert field in message and allowed in message
+    assert not out.exists()
+
+
+def test_unknown_scenario_and_nan_in_a_file(tmp_path):
+    result = invoke("run", "no-such-scenario", "--out", str(tmp_path / "x"))
+    assert result.exit_code == 2 and "choose one of" in result.output
+    bad = tmp_path / "bad.toml"
+    text = (
+        'name = "x"\nduration_s = nan\n'
+        '[reference]\nspeed_rpm = [{ type = "step", final = 100.0 }]\n'
+    )
+    bad.write_text(text)
+    result = invoke("run", str(bad), "--out", str(tmp_path / "y"))
+    assert result.exit_code == 2 and "duration_s" in result.output and "finite" in result.output
+    assert not (tmp_path / "y").exists()
+
+
+def test_a_diverging_run_stops_with_the_time_and_state(tmp_path):
+    result = invoke(
+        "run", "speed-step", "--set", "duration_s=0.05", "--set", "solver.step_s=1e-4",
+        "--set", "plant.backlash.stiffness_N_per_m=1e13", "--out", str(tmp_path / "d"),
+    )
+    assert result.exit_code == 2
+    assert "diverged at t =" in result.output and "solver.step_s" in result.output
+    assert not (tmp_path / "d").exists()

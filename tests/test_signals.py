@@ -1,0 +1,91 @@
+"""Signals: each term against its closed form, derivatives against finite differences."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pydantic import ValidationError
+
+from emasim.signals import (
+    ZERO,
+    Constant,
+    Ramp,
+    Sine,
+    Step,
+    Table,
+    combine,
+    encode,
+    signal_derivatives,
+    signal_value,
+)
+
+
+def values(sig, times):
+    return np.array([signal_value(sig, t) for t in times])
+
+
+def test_each_term_matches_its_closed_form():
+    t = np.linspace(0.0, 3.0, 301)
+    assert np.all(values(encode([Constant(value=2.5)]), t) == 2.5)
+    step = values(encode([Step(time_s=1.0, initial=-1.0, final=4.0)], 2.0), t)
+    assert np.all(step == np.where(t >= 1.0, 8.0, -2.0))
+    sine = Sine(amplitude=3.0, frequency_Hz=0.5, phase_deg=30.0, offset=1.0, start_s=0.5)
+    expected = np.where(
+        t < 0.5,
+        1.0 + 3.0 * math.sin(math.radians(30)),
+        1.0 + 3.0 * np.sin(math.pi * (t - 0.5) + math.radians(30)),
+    )
+    assert np.allclose(values(encode([sine]), t), expected, atol=1e-12)
+    ramp = values(encode([Ramp(slope_per_s=2.0, start_s=1.0, end_s=2.0)]), t)
+    assert np.allclose(ramp, 2.0 * np.clip(t - 1.0, 0.0, 1.0), atol=1e-12)
+    table = Table(time_s=[0.5, 1.0, 2.5], values=[1.0, -1.0, 3.0])
+    assert np.allclose(values(encode([table]), t), np.interp(t, table.time_s, table.values))
+    assert np.all(values(ZERO, t) == 0.0)
+
+
+def test_sums_add_up():
+    a = encode([Step(time_s=0.2, final=1.0), Sine(amplitude=0.5, frequency_Hz=2.0)])
+    b = encode([Ramp(slope_per_s=-1.0)], 3.0)
+    t = np.linspace(0, 1, 51)
+    assert np.allclose(values(combine(a, b), t), values(a, t) + values(b, t))
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    amplitude=st.floats(0.1, 10.0),
+    frequency=st.floats(0.05, 5.0),
+    phase=st.floats(-180.0, 180.0),
+    t=st.floats(0.01, 3.0),
+)
+def test_sine_derivatives_match_finite_differences(amplitude, frequency, phase, t):
+    sig = encode([Sine(amplitude=amplitude, frequency_Hz=frequency, phase_deg=phase)])
+    y, dy, ddy = signal_derivatives(sig, t)
+    h = 1e-5
+    y_minus, y_plus = signal_value(sig, t - h), signal_value(sig, t + h)
+    scale = amplitude * (2 * math.pi * frequency) ** 2
+    assert dy == pytest.approx((y_plus - y_minus) / (2 * h), abs=1e-6 * scale)
+    assert ddy == pytest.approx((y_plus - 2 * y + y_minus) / h**2, abs=1e-3 * scale)
+
+
+def test_ramp_and_table_rates():
+    assert signal_derivatives(encode([Ramp(slope_per_s=2.0)]), 0.5)[1] == 2.0
+    table = encode([Table(time_s=[0.0, 1.0], values=[0.0, 3.0])], 2.0)
+    assert signal_derivatives(table, 0.5)[:2] == pytest.approx((3.0, 6.0))
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Table(time_s=[0.0, 1.0], values=[1.0]),
+        lambda: Table(time_s=[1.0, 0.5], values=[1.0, 2.0]),
+        lambda: Ramp(slope_per_s=1.0, start_s=2.0, end_s=1.0),
+        lambda: Sine(amplitude=1.0, frequency_Hz=0.0),
+        lambda: Step(final=math.nan),
+        lambda: Step(final=1.0, time_s=-1.0),
+    ],
+)
+def test_bad_terms_are_rejected(make):
+    with pytest.raises(ValidationError):
+        make()
