@@ -5,13 +5,13 @@ import math
 import numba as nb
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def clamp(value, lower, upper):
     """value limited to [lower, upper]."""
     return min(max(value, lower), upper)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def limit_magnitude(a, b, limit):
     """Scale the vector (a, b) down to length ``limit`` if it is longer; keep its direction."""
     mag = math.sqrt(a * a + b * b)

@@ -136,7 +136,7 @@ def combine(*encoded: np.ndarray) -> np.ndarray:
 ZERO = encode([])  # the signal that is 0 at all times
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _term(kind, q, t):
     """Value, rate and acceleration of one term with parameters q at time t."""
     if kind == KIND_CONSTANT:
@@ -171,7 +171,7 @@ def _term(kind, q, t):
     return q[n + i] + slope * (t - q[i]), slope, 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def signal_derivatives(sig, t):
     """(y, dy/dt, d2y/dt2) of an encoded signal at time t (impulses of steps are not counted)."""
     y = 0.0
@@ -189,7 +189,7 @@ def signal_derivatives(sig, t):
     return y, dy, ddy
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def signal_value(sig, t):
     """y(t) of an encoded signal."""
     return signal_derivatives(sig, t)[0]

@@ -26,7 +26,7 @@ I_D, I_Q = range(2)
 N_STATE = 2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def current_control(state, params, i_d, i_q, w_m, id_ref, iq_ref, ts):
     """One sample of the current loop; returns the realised (ud, uq) in V."""
     w_e = params[NP] * w_m

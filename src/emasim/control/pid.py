@@ -30,7 +30,7 @@ INTEGRAL, DERIVATIVE, Y_PREV, STARTED = range(4)
 N_STATE = 4
 
 
-@nb.njit(CONTROLLER_SIG, cache=True)
+@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
 def pid(state, params, meas, ref, ts, out):
     """PID law of the module docstring; params and state laid out by KP..KAW, INTEGRAL..STARTED."""
     y = meas[int(params[CHANNEL])]

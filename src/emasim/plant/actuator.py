@@ -73,7 +73,7 @@ FRICTION_COULOMB = 1
 FRICTION_LUGRE = 2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def friction(w, z, p):
     """Friction torque on the motor shaft (N*m) and bristle rate dz/dt (rad/s).
 
@@ -89,7 +89,7 @@ def friction(w, z, p):
     return 0.0, 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def bristle_step(z0, w, h, p):
     """Exact bristle update over h with the speed w held (see friction.bristle_update)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -97,7 +97,7 @@ def bristle_step(z0, w, h, p):
     return fr.bristle_update(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def bristle_half_and_full_step(z0, w, h, p):
     """Exact bristle states after h/2 and h with the speed w held (LuGre only)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -105,7 +105,7 @@ def bristle_half_and_full_step(z0, w, h, p):
     return fr.bristle_half_and_full_step(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def backlash_force(x, p):
     """Drive-train contact force Fb (N), positive when the nut pushes the rod forward."""
     k = p[P_K]
@@ -114,13 +114,13 @@ def backlash_force(x, p):
     return dead_zone_force(dx, dv, p[P_HALF_GAP], p[P_KB], p[P_CB])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def motor_torque(x, p):
     """Electromagnetic torque Te (N*m) of the state x."""
     return electromagnetic_torque(x[X_ID], x[X_IQ], p[P_NP], p[P_LD], p[P_LQ], p[P_PSI])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def rhs(x, u_d, u_q, t_load, f_load, p, dx):
     """Write dx/dt of the actuator into ``dx``.
 

@@ -26,7 +26,7 @@ def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
     return lead_m / (2.0 * math.pi * gear_ratio)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def reflected_torque(force, motor_speed, ratio_k, efficiency):
     """Torque (N*m) that a nut force (N) puts on the motor shaft through gearbox and screw."""
     torque = ratio_k * force

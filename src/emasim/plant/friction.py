@@ -19,27 +19,27 @@ import math
 import numba as nb
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def stribeck(v, fc, fs, vs):
     """Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), the steady sliding friction level."""
     r = v / vs
     return fc + (fs - fc) * math.exp(-r * r)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_rate(z, v, fc, fs, vs, sigma0):
     """LuGre bristle rate dz/dt = v - sigma0 |v| z / g(v)."""
     return v - sigma0 * abs(v) * z / stribeck(v, fc, fs, vs)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def lugre_force(z, v, fc, fs, vs, sigma0, sigma1, sigma2):
     """LuGre friction force Ff = sigma0 z + sigma1 dz/dt + sigma2 v, returned with dz/dt."""
     z_rate = bristle_rate(z, v, fc, fs, vs, sigma0)
     return sigma0 * z + sigma1 * z_rate + sigma2 * v, z_rate
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_update(z0, v, h, fc, fs, vs, sigma0):
     """Bristle state after a step h with the velocity v held constant (exact solution).
 
@@ -58,7 +58,7 @@ def bristle_update(z0, v, h, fc, fs, vs, sigma0):
     return z_ss + (z0 - z_ss) * math.exp(-a * h)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, v, h, fc, fs, vs, sigma0):
     """Exact bristle state after h/2 and after h with v held: (z(h/2), z(h)), one exp."""
     if v == 0.0:
@@ -70,7 +70,7 @@ def bristle_half_and_full_step(z0, v, h, fc, fs, vs, sigma0):
     return z_half, z_ss + (z0 - z_ss) * decay * decay
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def coulomb_viscous_force(v, fc, v_smooth, sigma2):
     """Static map Ff = Fc tanh(v / v_smooth) + sigma2 v.
 

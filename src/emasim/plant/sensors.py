@@ -34,7 +34,7 @@ S_OFFSET = 2
 S_HALF_GAP = 3
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def true_values(x, p, values):
     """Write the noiseless value of every measurement channel of state x into ``values``."""
     values[M_SPEED] = x[A.X_WM]
@@ -47,7 +47,7 @@ def true_values(x, p, values):
     values[M_RUDDER] = x[A.X_XL] / p[A.P_ARM]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def read_sensor(value, resolution, noise_std, offset):
     """One sample of a sensor: offset, Gaussian noise, then quantisation."""
     y = value + offset
@@ -58,7 +58,7 @@ def read_sensor(value, resolution, noise_std, offset):
     return y
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def measure(x, p, table, gap_state, meas):
     """Fill ``meas`` with every channel's reading; ``gap_state`` holds each play operator's output.
 

@@ -59,7 +59,7 @@ NOT_FINITE = 1
 OUT_OF_BOUNDS = 2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def control_tick(
     t, x, p, sensor_table, gap_state, loop, ref_sig,
     pos_fn, pos_p, pos_s, speed_fn, speed_p, speed_s, cur_p, cur_s, ts, meas, ref, out,
@@ -81,7 +81,7 @@ def control_tick(
     return u_d, u_q, r, iq_ref, position_ref
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _stage(xs, x, k, dt, z):
     """xs = x + dt k for every state but the bristle, which is set to z."""
     for i in range(A.N_STATE):
@@ -89,7 +89,7 @@ def _stage(xs, x, k, dt, z):
     xs[A.X_Z] = z
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, h, work):
     """Advance x by one RK4 sub-step h with the voltages held; work is a (5, N_STATE) scratch.
 
@@ -118,7 +118,7 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, h, work):
     x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def check_state(x, limits, status, tick):
     """Flag the first state that is NaN/inf or beyond its limit; True when all are fine."""
     for i in range(A.N_STATE):
@@ -131,7 +131,7 @@ def check_state(x, limits, status, tick):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def record(row, t, x, p, motor_load, rod_load, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
     """Write one trace row (layout TRACE_COLUMNS)."""
     row[0] = t
@@ -168,7 +168,7 @@ RUN_SIG = types.void(
 )
 
 
-@nb.njit(RUN_SIG, cache=True)
+@nb.njit(RUN_SIG, cache=True, error_model="numpy")
 def run_ticks(
     k0, k1, substeps, ts, x, p, motor_load, rod_load, ref_sig, loop,
     sensor_table, gap_state, seed, pos_fn, pos_p, pos_s, speed_fn, speed_p, speed_s,

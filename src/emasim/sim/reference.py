@@ -24,7 +24,7 @@ from .result import Result
 ATOL = np.array([1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, t_end):
     """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
     boundary belongs to the next tick, as it does in the engine."""
