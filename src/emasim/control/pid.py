@@ -18,7 +18,7 @@ from typing import ClassVar, Literal
 
 import numba as nb
 import numpy as np
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
 from ..numerics import clamp
@@ -96,6 +96,12 @@ class PositionPID(ControllerConfig):
     ki_per_s2: float | None = Field(default=None, ge=0, description="overrides bandwidth")
     derivative_filter_s: float = Field(default=2e-3, gt=0, description="Tf of the D term")
     velocity_feedforward: bool = Field(default=True, description="add dx_ref/dt / K")
+
+    @model_validator(mode="after")
+    def _no_derivative_in_pi(self):
+        if self.name == "pi" and self.kd:
+            raise ValueError("kd must be 0 or absent for the 'pi' controller; use name = 'pid'")
+        return self
 
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         alpha = 2.0 * math.pi * self.bandwidth_Hz
