@@ -38,7 +38,11 @@ def run_folder(tmp_path_factory):
 def test_run_writes_the_whole_folder(run_folder):
     out, output = run_folder
     assert {p.name for p in out.iterdir()} == {
-        "result.parquet", "metrics.json", "scenario.toml", "meta.json", "plot.png",
+        "result.parquet",
+        "metrics.json",
+        "scenario.toml",
+        "meta.json",
+        "plot.png",
     }
     frame = pd.read_parquet(out / "result.parquet")
     for column in ("t_s", "motor_speed_rad_s", "iq_A", "actuator_position_m", "rudder_angle_rad"):
@@ -107,8 +111,16 @@ def test_unknown_scenario_and_nan_in_a_file(tmp_path):
 
 def test_a_diverging_run_stops_with_the_time_and_state(tmp_path):
     result = invoke(
-        "run", "speed-step", "--set", "duration_s=0.05", "--set", "solver.step_s=1e-4",
-        "--set", "plant.backlash.stiffness_N_per_m=1e13", "--out", str(tmp_path / "d"),
+        "run",
+        "speed-step",
+        "--set",
+        "duration_s=0.05",
+        "--set",
+        "solver.step_s=1e-4",
+        "--set",
+        "plant.backlash.stiffness_N_per_m=1e13",
+        "--out",
+        str(tmp_path / "d"),
     )
     assert result.exit_code == 2
     assert "diverged at t =" in result.output and "solver.step_s" in result.output

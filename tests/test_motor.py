@@ -235,6 +235,7 @@ def test_voltage_never_exceeds_the_inverter_limit(speed_rpm, controller_bus_fact
     u = np.hypot(r["ud_V"], r["uq_V"])
     assert u.max() <= limit * (1.0 + 1e-12)
     assert np.mean(u >= limit * (1.0 - 1e-9)) > 0.5  # the limit was active most of the run
+    # and the motor got close to the speed where its back-EMF alone reaches the limit
     assert abs(r["motor_speed_rad_s"]).max() > 0.9 * limit / (
         plant.motor.pole_pairs * plant.motor.flux_linkage_Wb
     )

@@ -19,3 +19,21 @@ def limit_magnitude(a, b, limit):
         return a, b
     scale = limit / mag
     return a * scale, b * scale
+
+
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def sign(x):
+    """sign(x) in {-1, 0, 1}."""
+    if x > 0.0:
+        return 1.0
+    if x < 0.0:
+        return -1.0
+    return 0.0
+
+
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def boundary_layer(s, width):
+    """sat(s / width): the sign function smoothed linearly inside |s| < width (width 0: sign)."""
+    if width <= 0.0:
+        return sign(s)
+    return min(max(s / width, -1.0), 1.0)

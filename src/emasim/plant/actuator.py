@@ -129,9 +129,7 @@ def rhs(x, u_d, u_q, t_load, f_load, p, dx):
     """
     w = x[X_WM]
     w_e = p[P_NP] * w
-    did, diq = current_rates(
-        x[X_ID], x[X_IQ], u_d, u_q, w_e, p[P_RS], p[P_LD], p[P_LQ], p[P_PSI]
-    )
+    did, diq = current_rates(x[X_ID], x[X_IQ], u_d, u_q, w_e, p[P_RS], p[P_LD], p[P_LQ], p[P_PSI])
     f_b = backlash_force(x, p)
     t_friction, z_rate = friction(w, x[X_Z], p)
     t_net = (

@@ -50,10 +50,9 @@ def bristle_update(z0, v, h, fc, fs, vs, sigma0):
     and for v = 0 the state does not move. For a*h << 1 this tends to z0 + (v - a z0) h
     (explicit Euler); for a*h >> 1 it lands on the steady state z_ss: stable for any h.
     """
-    if v == 0.0:
+    a = sigma0 * abs(v) / stribeck(v, fc, fs, vs)
+    if a == 0.0:  # v = 0, or so small that sigma0 |v| underflows
         return z0
-    g = stribeck(v, fc, fs, vs)
-    a = sigma0 * abs(v) / g
     z_ss = v / a
     return z_ss + (z0 - z_ss) * math.exp(-a * h)
 
@@ -61,9 +60,9 @@ def bristle_update(z0, v, h, fc, fs, vs, sigma0):
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, v, h, fc, fs, vs, sigma0):
     """Exact bristle state after h/2 and after h with v held: (z(h/2), z(h)), one exp."""
-    if v == 0.0:
-        return z0, z0
     a = sigma0 * abs(v) / stribeck(v, fc, fs, vs)
+    if a == 0.0:
+        return z0, z0
     z_ss = v / a
     decay = math.exp(-0.5 * a * h)
     z_half = z_ss + (z0 - z_ss) * decay

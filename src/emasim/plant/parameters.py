@@ -172,14 +172,19 @@ class PlantParams(Strict):
         p[A.P_B] = m.viscous_Nms_per_rad
         p[A.P_K] = k
         p[A.P_ETA] = d.gear_efficiency * d.screw_efficiency
-        p[A.P_FRICTION] = {"none": A.FRICTION_NONE, "coulomb": A.FRICTION_COULOMB,
-                           "lugre": A.FRICTION_LUGRE}[f.model]
+        p[A.P_FRICTION] = {
+            "none": A.FRICTION_NONE,
+            "coulomb": A.FRICTION_COULOMB,
+            "lugre": A.FRICTION_LUGRE,
+        }[f.model]
         p[A.P_TC] = f.coulomb_Nm
         p[A.P_TS] = f.static_Nm
         p[A.P_WS] = f.stribeck_speed_rad_s
         p[A.P_SIGMA0] = f.bristle_stiffness_Nm_per_rad
         p[A.P_SIGMA1] = bristle_damping_for_ratio(
-            f.bristle_damping_ratio, f.bristle_stiffness_Nm_per_rad, m.inertia_kgm2,
+            f.bristle_damping_ratio,
+            f.bristle_stiffness_Nm_per_rad,
+            m.inertia_kgm2,
             f.viscous_Nms_per_rad,
         )
         p[A.P_SIGMA2] = f.viscous_Nms_per_rad

@@ -111,8 +111,9 @@ def bench_sensors() -> SensorParams:
     Motor speed and currents: the drive's own resolver and shunts (ours: 0.1 rad/s, 0.05 A noise).
     """
     arcsec = math.pi / (180.0 * 3600.0)
+    encoder_count = 2.0 * math.pi / 2**20
     return SensorParams(
-        rudder=SensorChannel(resolution=2.0 * math.pi / 2**20, noise_std=60 * arcsec / math.sqrt(3)),
+        rudder=SensorChannel(resolution=encoder_count, noise_std=60 * arcsec / math.sqrt(3)),
         position=SensorChannel(resolution=0.250 / 2**16),
         force=SensorChannel(noise_std=100.0 / math.sqrt(3)),
         speed=SensorChannel(noise_std=0.1),

@@ -48,6 +48,12 @@ def true_values(x, p, values):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def seed_noise(seed):
+    """Seed the generator of compiled code (numba keeps its own, apart from numpy's)."""
+    np.random.seed(seed)
+
+
+@nb.njit(cache=True, error_model="numpy")
 def read_sensor(value, resolution, noise_std, offset):
     """One sample of a sensor: offset, Gaussian noise, then quantisation."""
     y = value + offset

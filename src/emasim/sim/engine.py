@@ -21,16 +21,17 @@ from numba import types
 from ..control.current import N_STATE as N_CURRENT_STATE
 from ..control.current import current_control
 from ..control.slot import CONTROLLER_TYPE
+from ..errors import SimulationDiverged
 from ..interface import M_ID, M_IQ, M_POSITION, M_SPEED, N_MEAS, N_OUT, N_REF, O_RATE, O_VALUE
 from ..plant import actuator as A
 from ..plant.motor import limit_voltage
-from ..plant.sensors import measure
-from ..errors import SimulationDiverged
+from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
 from .result import Result
 
-LOOP_SPEED = 0
-LOOP_POSITION = 1
+LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
+LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
+LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
 
 # trace columns: time, the plant state, then the signals below
 EXTRA_COLUMNS = (
@@ -61,21 +62,42 @@ OUT_OF_BOUNDS = 2
 
 @nb.njit(cache=True, error_model="numpy")
 def control_tick(
-    t, x, p, sensor_table, gap_state, loop, ref_sig,
-    pos_fn, pos_p, pos_s, speed_fn, speed_p, speed_s, cur_p, cur_s, ts, meas, ref, out,
+    t,
+    x,
+    p,
+    sensor_table,
+    gap_state,
+    loop,
+    ref_sig,
+    pos_fn,
+    pos_p,
+    pos_s,
+    speed_fn,
+    speed_p,
+    speed_s,
+    cur_p,
+    cur_s,
+    ts,
+    meas,
+    ref,
+    out,
 ):
     """One control sample: returns (ud, uq, speed_ref, iq_ref, position_ref) applied from t on."""
     measure(x, p, sensor_table, gap_state, meas)
     r, dr, ddr = signal_derivatives(ref_sig, t)
     position_ref = np.nan
-    if loop == LOOP_POSITION:
+    if loop != LOOP_SPEED:
         position_ref = r
         ref[0], ref[1], ref[2] = r, dr, ddr
         pos_fn(pos_s, pos_p, meas, ref, ts, out)
         r, dr = out[O_VALUE], out[O_RATE]
-    ref[0], ref[1], ref[2] = r, dr, 0.0
-    speed_fn(speed_s, speed_p, meas, ref, ts, out)
-    iq_ref = out[O_VALUE]
+    if loop == LOOP_POSITION_CURRENT:
+        iq_ref = r
+        r = np.nan  # no speed reference in this structure
+    else:
+        ref[0], ref[1], ref[2] = r, dr, 0.0
+        speed_fn(speed_s, speed_p, meas, ref, ts, out)
+        iq_ref = out[O_VALUE]
     u_d, u_q = current_control(cur_s, cur_p, meas[M_ID], meas[M_IQ], meas[M_SPEED], 0.0, iq_ref, ts)
     u_d, u_q = limit_voltage(u_d, u_q, p[A.P_UDC])
     return u_d, u_q, r, iq_ref, position_ref
@@ -158,21 +180,61 @@ I8 = types.int64
 F8A = types.float64[::1]
 F8A2 = types.float64[:, ::1]
 RUN_SIG = types.void(
-    I8, I8, I8, F8,  # k0, k1, substeps, ts
-    F8A, F8A, F8A, F8A, F8A, I8,  # x, p, motor_load, rod_load, ref_sig, loop
-    F8A2, F8A, I8,  # sensor_table, gap_state, seed
-    CONTROLLER_TYPE, F8A, F8A,  # position controller
-    CONTROLLER_TYPE, F8A, F8A,  # speed controller
-    F8A, F8A, F8A,  # current params, current state, state limits
-    I8, F8A2, types.int64[::1],  # record_every, trace, status
+    I8,
+    I8,
+    I8,
+    F8,  # k0, k1, substeps, ts
+    F8A,
+    F8A,
+    F8A,
+    F8A,
+    F8A,
+    I8,  # x, p, motor_load, rod_load, ref_sig, loop
+    F8A2,
+    F8A,
+    I8,  # sensor_table, gap_state, seed
+    CONTROLLER_TYPE,
+    F8A,
+    F8A,  # position controller
+    CONTROLLER_TYPE,
+    F8A,
+    F8A,  # speed controller
+    F8A,
+    F8A,
+    F8A,  # current params, current state, state limits
+    I8,
+    F8A2,
+    types.int64[::1],  # record_every, trace, status
 )
 
 
 @nb.njit(RUN_SIG, cache=True, error_model="numpy")
 def run_ticks(
-    k0, k1, substeps, ts, x, p, motor_load, rod_load, ref_sig, loop,
-    sensor_table, gap_state, seed, pos_fn, pos_p, pos_s, speed_fn, speed_p, speed_s,
-    cur_p, cur_s, limits, record_every, trace, status,
+    k0,
+    k1,
+    substeps,
+    ts,
+    x,
+    p,
+    motor_load,
+    rod_load,
+    ref_sig,
+    loop,
+    sensor_table,
+    gap_state,
+    seed,
+    pos_fn,
+    pos_p,
+    pos_s,
+    speed_fn,
+    speed_p,
+    speed_s,
+    cur_p,
+    cur_s,
+    limits,
+    record_every,
+    trace,
+    status,
 ):
     """Run ticks k0 .. k1-1 in place on x and the controller states.
 
@@ -181,7 +243,7 @@ def run_ticks(
     ``limits`` the run stops and ``status`` holds (code, tick, state index).
     """
     if k0 == 0:
-        np.random.seed(seed)
+        seed_noise(seed)
     h = ts / substeps
     work = np.empty((5, A.N_STATE))
     meas = np.empty(N_MEAS)
@@ -190,13 +252,40 @@ def run_ticks(
     for k in range(k0, k1):
         t = k * ts
         u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
-            t, x, p, sensor_table, gap_state, loop, ref_sig, pos_fn, pos_p, pos_s,
-            speed_fn, speed_p, speed_s, cur_p, cur_s, ts, meas, ref, out,
+            t,
+            x,
+            p,
+            sensor_table,
+            gap_state,
+            loop,
+            ref_sig,
+            pos_fn,
+            pos_p,
+            pos_s,
+            speed_fn,
+            speed_p,
+            speed_s,
+            cur_p,
+            cur_s,
+            ts,
+            meas,
+            ref,
+            out,
         )
         if k % record_every == 0:
             record(
-                trace[k // record_every], t, x, p, motor_load, rod_load, u_d, u_q, speed_ref,
-                iq_ref, position_ref, meas,
+                trace[k // record_every],
+                t,
+                x,
+                p,
+                motor_load,
+                rod_load,
+                u_d,
+                u_q,
+                speed_ref,
+                iq_ref,
+                position_ref,
+                meas,
             )
         for j in range(substeps):
             plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, h, work)
@@ -207,8 +296,10 @@ def run_ticks(
 def _divergence_message(setup, status) -> str:
     code, tick, index = (int(v) for v in status)
     name = A.STATE_NAMES[index]
-    what = "became NaN or infinite" if code == NOT_FINITE else (
-        f"left its bound of +-{setup.limits[index]:g}"
+    what = (
+        "became NaN or infinite"
+        if code == NOT_FINITE
+        else (f"left its bound of +-{setup.limits[index]:g}")
     )
     return (
         f"simulation diverged at t = {tick * setup.sample_period_s:.6g} s: state '{name}' {what}. "
@@ -233,16 +324,36 @@ def simulate(setup, progress=None):
     cur_state = np.zeros(N_CURRENT_STATE)
     gap = setup.initial_gap_state()
     status = np.zeros(3, dtype=np.int64)
-    loop = LOOP_SPEED if setup.position is None else LOOP_POSITION
+    loop = setup.loop_structure
     chunk = max(1, n // 50)
     start = time.perf_counter()
     for k0 in range(0, n, chunk):
         run_ticks(
-            k0, min(n, k0 + chunk), setup.substeps, setup.sample_period_s, x, setup.plant,
-            setup.motor_load, setup.rod_load, setup.reference, loop, setup.sensors, gap,
-            setup.seed, position.function, position.params, pos_state, setup.speed.function,
-            setup.speed.params, speed_state, setup.current_params, cur_state, setup.limits,
-            setup.record_every, trace, status,
+            k0,
+            min(n, k0 + chunk),
+            setup.substeps,
+            setup.sample_period_s,
+            x,
+            setup.plant,
+            setup.motor_load,
+            setup.rod_load,
+            setup.reference,
+            loop,
+            setup.sensors,
+            gap,
+            setup.seed,
+            position.function,
+            position.params,
+            pos_state,
+            setup.speed.function,
+            setup.speed.params,
+            speed_state,
+            setup.current_params,
+            cur_state,
+            setup.limits,
+            setup.record_every,
+            trace,
+            status,
         )
         if status[0] != OK:
             raise SimulationDiverged(_divergence_message(setup, status))

@@ -16,8 +16,9 @@ from scipy.integrate import solve_ivp
 from ..control.current import N_STATE as N_CURRENT_STATE
 from ..interface import N_MEAS, N_OUT, N_REF
 from ..plant import actuator as A
+from ..plant.sensors import seed_noise
 from ..signals import signal_value
-from .engine import LOOP_POSITION, LOOP_SPEED, N_COLUMNS, TRACE_COLUMNS, control_tick, record
+from .engine import N_COLUMNS, TRACE_COLUMNS, control_tick, record
 from .result import Result
 
 # absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s
@@ -45,24 +46,55 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
     speed_state = setup.speed.state.copy()
     cur_state = np.zeros(N_CURRENT_STATE)
     gap = setup.initial_gap_state()
-    loop = LOOP_SPEED if setup.position is None else LOOP_POSITION
+    loop = setup.loop_structure
     meas, ref, out = np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT)
-    np.random.seed(setup.seed)
+    seed_noise(setup.seed)
     start = time.perf_counter()
     for k in range(n):
         t = k * ts
         u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
-            t, x, setup.plant, setup.sensors, gap, loop, setup.reference, position.function,
-            position.params, pos_state, setup.speed.function, setup.speed.params, speed_state,
-            setup.current_params, cur_state, ts, meas, ref, out,
+            t,
+            x,
+            setup.plant,
+            setup.sensors,
+            gap,
+            loop,
+            setup.reference,
+            position.function,
+            position.params,
+            pos_state,
+            setup.speed.function,
+            setup.speed.params,
+            speed_state,
+            setup.current_params,
+            cur_state,
+            ts,
+            meas,
+            ref,
+            out,
         )
         if k % setup.record_every == 0:
             record(
-                trace[k // setup.record_every], t, x, setup.plant, setup.motor_load,
-                setup.rod_load, u_d, u_q, speed_ref, iq_ref, position_ref, meas,
+                trace[k // setup.record_every],
+                t,
+                x,
+                setup.plant,
+                setup.motor_load,
+                setup.rod_load,
+                u_d,
+                u_q,
+                speed_ref,
+                iq_ref,
+                position_ref,
+                meas,
             )
         sol = solve_ivp(
-            _rhs, (t, t + ts), x, method=method, rtol=rtol, atol=ATOL,
+            _rhs,
+            (t, t + ts),
+            x,
+            method=method,
+            rtol=rtol,
+            atol=ATOL,
             args=(u_d, u_q, setup.plant, setup.motor_load, setup.rod_load, t + ts),
         )
         if not sol.success:

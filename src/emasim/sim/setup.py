@@ -10,6 +10,7 @@ from ..interface import N_MEAS
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
+from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
 
 
 @dataclass
@@ -49,6 +50,13 @@ class Setup:
     def n_ticks(self) -> int:
         """Number of control ticks, round(duration / Ts)."""
         return int(round(self.duration_s / self.sample_period_s))
+
+    @property
+    def loop_structure(self) -> int:
+        """Which loops close: engine.LOOP_SPEED, LOOP_POSITION or LOOP_POSITION_CURRENT."""
+        if self.position is None:
+            return LOOP_SPEED
+        return LOOP_POSITION if self.position.commands == "speed" else LOOP_POSITION_CURRENT
 
     @property
     def step_s(self) -> float:
