@@ -33,7 +33,7 @@ def _fail(err: Exception) -> None:
 @app.command("list")
 def list_all() -> None:
     """Show the shipped scenarios and the controllers of each loop."""
-    from .control.registry import CONTROLLERS, DESCRIPTIONS
+    from .control.registry import CASCADES, CONTROLLERS, DESCRIPTIONS
     from .scenarios.loader import builtin_scenarios, read_scenario_file
 
     table = Table(title="scenarios")
@@ -50,6 +50,9 @@ def list_all() -> None:
     for loop, names in CONTROLLERS.items():
         for name in names:
             table.add_row(loop, name, DESCRIPTIONS.get((loop, name), ""))
+    for name, loops in CASCADES.items():
+        chain = " over ".join(loops[lp]["name"] for lp in ("position", "speed"))
+        table.add_row("cascade", name, f"position {chain} over the current loop")
     console.print(table)
 
 
@@ -65,8 +68,11 @@ class _LazyProgress:
     def __call__(self, fraction: float) -> None:
         if self.bar is None and time.perf_counter() - self.start > self.delay_s:
             self.bar = Progress(
-                TextColumn("{task.description}"), BarColumn(), TimeRemainingColumn(),
-                console=err_console, transient=True,
+                TextColumn("{task.description}"),
+                BarColumn(),
+                TimeRemainingColumn(),
+                console=err_console,
+                transient=True,
             )
             self.bar.start()
             self.task = self.bar.add_task(self.label, total=1.0)
@@ -92,12 +98,20 @@ def run(
     scenario: Annotated[str, typer.Argument(help="a shipped scenario name or a .toml path")],
     controller: Annotated[
         list[str] | None,
-        typer.Option("--controller", "-c", help="LOOP=NAME, e.g. speed=pi (repeatable)"),
+        typer.Option(
+            "--controller",
+            "-c",
+            help="LOOP=NAME, e.g. speed=st-gpio (repeatable), or a cascade: hybrid, pid",
+        ),
     ] = None,
     setting: Annotated[
         list[str] | None,
-        typer.Option("--set", "-s", help="dotted.key=value override, e.g. duration_s=1 "
-                      "or plant.backlash.width_mm=0.2 (repeatable)"),
+        typer.Option(
+            "--set",
+            "-s",
+            help="dotted.key=value override, e.g. duration_s=1 "
+            "or plant.backlash.width_mm=0.2 (repeatable)",
+        ),
     ] = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="run folder (default runs/SCENARIO)")

@@ -26,8 +26,9 @@ def plot_result(result, title: str | None = None):
         axes[0].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.4, label="motor speed")
         axes[0].set_ylabel("speed (rpm)")
     if position_run:
-        axes[1].plot(t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=0.8,
-                     label="speed command")
+        axes[1].plot(
+            t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=0.8, label="speed command"
+        )
         axes[1].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.0, label="motor speed")
         axes[1].set_ylabel("speed (rpm)")
     else:

@@ -44,7 +44,10 @@ def run_metrics(result) -> dict:
     before = t < t_step_end
     final = ref[before][-1]
     info = m.step_info(
-        t[before], y[before], initial=y[0], final=final,
+        t[before],
+        y[before],
+        initial=y[0],
+        final=final,
         dead_zone_threshold=DEAD_ZONE_MM if position_run else None,
     )
     out = {f"{k}": v for k, v in info.items() if k != "peak"}

@@ -48,14 +48,14 @@ def pid(state, params, meas, ref, ts, out):
     out[O_RATE] = params[KFF] * ref[R_ACCEL]
 
 
-def pack_pid(kp, ki, kd, tf, limit, kff, channel) -> Compiled:
+def pack_pid(kp, ki, kd, tf, limit, kff, channel, commands="current") -> Compiled:
     """Parameter array and zero state of :func:`pid`; anti-windup gain Kaw = Ki/Kp (Tt = Ti)."""
     params = np.zeros(N_PARAMS)
     params[KP], params[KI], params[KD], params[TF] = kp, ki, kd, tf
     params[U_MIN], params[U_MAX] = -limit, limit
     params[KFF], params[CHANNEL] = kff, channel
     params[KAW] = ki / kp if kp > 0 else 0.0
-    return Compiled(pid, params, np.zeros(N_STATE))
+    return Compiled(pid, params, np.zeros(N_STATE), commands)
 
 
 class SpeedPI(ControllerConfig):
@@ -111,6 +111,12 @@ class PositionPID(ControllerConfig):
         k = plant.ratio_m_per_rad
         kff = 1.0 / k if self.velocity_feedforward else 0.0
         return pack_pid(
-            kp / k, ki / k, kd / k, self.derivative_filter_s, plant.max_speed_rad_s, kff,
+            kp / k,
+            ki / k,
+            kd / k,
+            self.derivative_filter_s,
+            plant.max_speed_rad_s,
+            kff,
             M_POSITION,
+            commands="speed",
         )

@@ -17,8 +17,8 @@ Every library controller is compiled eagerly with exactly :data:`CONTROLLER_SIG`
 
 import math
 from abc import abstractmethod
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import ClassVar, Literal
 
 import numpy as np
@@ -56,11 +56,17 @@ class PlantFacts:
 
 @dataclass(frozen=True)
 class Compiled:
-    """A controller ready for the engine: its function, parameter array and initial state."""
+    """A controller ready for the engine: its function, parameter array and initial state.
+
+    ``commands`` says what its out[O_VALUE] is: a q-axis current (A) or a motor speed (rad/s).
+    Speed-loop controllers command a current; a position controller commands either the speed
+    loop (cascade) or the current loop directly.
+    """
 
     function: Callable
     params: np.ndarray
     state: np.ndarray
+    commands: Literal["current", "speed"] = "current"
 
 
 class ControllerConfig(BaseModel):

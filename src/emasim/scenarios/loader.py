@@ -6,7 +6,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
-from ..control.registry import CONTROLLERS
+from ..control.registry import CASCADES, CONTROLLERS
 from ..errors import InputError
 from .schema import Scenario
 
@@ -37,10 +37,16 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
 
 
 def apply_controller_choice(raw: dict, choice: str) -> None:
-    """Apply ``LOOP=NAME`` (e.g. ``speed=pi``): that loop's controller, with default gains."""
+    """Apply ``LOOP=NAME`` (e.g. ``speed=pi``), that loop's controller with default gains, or
+    the name of a cascade (``hybrid``, ``pid``) for every loop the scenario closes."""
     loop, sep, name = choice.partition("=")
+    if not sep and choice in CASCADES:
+        raw["controllers"] = {"cascade": choice}
+        return
     if not sep or not name:
-        raise InputError(f"--controller: expected LOOP=NAME, got '{choice}'")
+        raise InputError(
+            f"--controller: expected LOOP=NAME or a cascade ({', '.join(CASCADES)}), got '{choice}'"
+        )
     if loop not in CONTROLLERS:
         raise InputError(f"--controller: unknown loop '{loop}'; loops: {', '.join(CONTROLLERS)}")
     if name not in CONTROLLERS[loop]:

@@ -14,10 +14,11 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from ..control.current import CurrentPI
-from ..control.pid import PositionPID, SpeedPI
+from ..control.pid import SpeedPI
+from ..control.registry import CASCADES, PositionController, SpeedController
+from ..plant import actuator as A
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..plant import actuator as A
 from ..signals import Term, combine, encode
 from ..sim.setup import Setup, plant_facts
 
@@ -98,10 +99,14 @@ class Load(Strict):
 
 
 class Controllers(Strict):
-    """One controller per loop; the position loop only when the reference is a position."""
+    """One controller per loop; the position loop only when the reference is a position.
 
-    speed: SpeedPI = SpeedPI()
-    position: PositionPID | None = None
+    In a file, ``controllers = "hybrid"`` (or a table with ``cascade = "hybrid"`` plus
+    overrides) starts from a named cascade of :data:`emasim.control.registry.CASCADES`.
+    """
+
+    speed: SpeedController = SpeedPI()
+    position: PositionController | None = None
     current: CurrentPI = CurrentPI()
 
 
@@ -125,8 +130,26 @@ def _from_preset(section, presets: dict, what: str) -> dict:
     section = dict(section)
     name = section.pop("preset", next(iter(presets)))
     if name not in presets:
-        raise ValueError(f"{what}.preset: unknown preset '{name}'; choose one of: {', '.join(presets)}")
+        choices = ", ".join(presets)
+        raise ValueError(f"{what}.preset: unknown preset '{name}'; choose one of: {choices}")
     return _merge(presets[name]().model_dump(), section)
+
+
+def _from_cascade(section, scenario: dict):
+    """Expand a named cascade; a speed-loop scenario keeps only the cascade's speed controller."""
+    if isinstance(section, str):
+        section = {"cascade": section}
+    if not isinstance(section, dict) or "cascade" not in section:
+        return section
+    section = dict(section)
+    name = section.pop("cascade")
+    if name not in CASCADES:
+        choices = ", ".join(CASCADES)
+        raise ValueError(f"controllers.cascade: unknown cascade '{name}'; choose one of: {choices}")
+    cascade = dict(CASCADES[name])
+    if "speed_rpm" in scenario.get("reference", {}):
+        cascade.pop("position")
+    return _merge(cascade, section)
 
 
 class Scenario(Strict):
@@ -150,6 +173,7 @@ class Scenario(Strict):
             data = dict(data)
             data["plant"] = _from_preset(data.get("plant", {}), PRESETS, "plant")
             data["sensors"] = _from_preset(data.get("sensors", {}), SENSOR_PRESETS, "sensors")
+            data["controllers"] = _from_cascade(data.get("controllers", {}), data)
         return data
 
     @model_validator(mode="after")
@@ -201,7 +225,8 @@ def state_limits(plant: PlantParams, stroke_m: float) -> np.ndarray:
     limits[A.X_ID] = limits[A.X_IQ] = 20.0 * m.max_current_A
     limits[A.X_WM] = 20.0 * m.max_speed_rpm * RPM
     limits[A.X_THETA] = 1e3 * stroke_m / plant.ratio_m_per_rad
-    limits[A.X_Z] = 1e3 * max(plant.friction.static_Nm, 1e-3) / plant.friction.bristle_stiffness_Nm_per_rad
+    f = plant.friction
+    limits[A.X_Z] = 1e3 * max(f.static_Nm, 1e-3) / f.bristle_stiffness_Nm_per_rad
     limits[A.X_XL] = 1e3 * stroke_m
     limits[A.X_VL] = 20.0 * m.max_speed_rpm * RPM * plant.ratio_m_per_rad
     return limits
