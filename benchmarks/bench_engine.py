@@ -17,6 +17,7 @@ import sys
 import tempfile
 import time
 
+from emasim.control.registry import CONTROLLERS
 from emasim.scenarios.loader import builtin_scenarios, load_scenario
 from emasim.sim.engine import simulate
 from emasim.sim.reference import simulate_reference
@@ -41,12 +42,24 @@ def real_time_factors() -> dict:
     return out
 
 
-def fresh_process_seconds(cache_dir: str | None) -> float:
+def controller_real_time_factors() -> dict:
+    """RTF of every controller, each on the experiment of its loop (speed-step, position-step)."""
+    out = {}
+    for loop, scenario_name in (("speed", "speed-step"), ("position", "position-step")):
+        for name in CONTROLLERS[loop]:
+            scenario = load_scenario(scenario_name, controllers=[f"{loop}={name}"])
+            setup = scenario.setup()
+            simulate(setup.with_(duration_s=setup.sample_period_s * 10))
+            out[f"{loop}={name}"] = best_of(3, lambda s=setup: simulate(s)) / scenario.duration_s
+    return out
+
+
+def fresh_process_seconds(cache_dir: str | None, *extra: str) -> float:
     env = dict(os.environ)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = cache_dir
     with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "emasim", "run", "speed-step", "--out", f"{out}/run"]
+        cmd = [sys.executable, "-m", "emasim", "run", "speed-step", *extra, "--out", f"{out}/run"]
         start = time.perf_counter()
         subprocess.run(cmd, check=True, env=env, capture_output=True)
         return time.perf_counter() - start
@@ -66,14 +79,24 @@ def main() -> None:
     parser.add_argument("--json", help="also write the figures to this file")
     args = parser.parse_args()
     results = {"real_time_factor": real_time_factors()}
+    results["controller_real_time_factor"] = controller_real_time_factors()
     fresh_process_seconds(None)  # make sure the default cache is warm
     results["fresh_run_warm_cache_s"] = min(fresh_process_seconds(None) for _ in range(3))
+    results["fresh_run_st_gpio_warm_cache_s"] = min(
+        fresh_process_seconds(None, "--controller", "speed=st-gpio") for _ in range(3)
+    )
     with tempfile.TemporaryDirectory() as cold:
         results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
     results["reference"] = reference_speedup()
     for name, rtf in results["real_time_factor"].items():
         print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
+    for name, rtf in results["controller_real_time_factor"].items():
+        print(f"  {name:20s} RTF {rtf:.4f} s/s")
     print(f"fresh `emasim run speed-step`, warm cache: {results['fresh_run_warm_cache_s']:.2f} s")
+    print(
+        "fresh `emasim run speed-step -c speed=st-gpio`, warm cache: "
+        f"{results['fresh_run_st_gpio_warm_cache_s']:.2f} s"
+    )
     print(f"fresh `emasim run speed-step`, cold cache: {results['fresh_run_cold_cache_s']:.2f} s")
     ref = results["reference"]
     print(

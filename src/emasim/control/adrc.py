@@ -14,21 +14,20 @@ idea with one extended state fewer.
 import math
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..interface import M_SPEED, O_RATE, O_VALUE, R_RATE, R_VALUE
 from ..numerics import clamp
 from .observers import discrete_observer, observer_step
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 WC, B, LIMIT, OBS = range(4)
 STARTED, Z = range(2)
 ESO_ORDER = 2
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def adrc(state, params, meas, ref, ts, out):
     """Linear ADRC law of the module docstring, one sample."""
     w = meas[M_SPEED]

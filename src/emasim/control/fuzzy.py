@@ -27,7 +27,7 @@ from pydantic import Field
 
 from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
 from ..numerics import clamp
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 # rule tables, levels -3 (NB) .. +3 (PB); rows e = NB..PB, columns ec = NB..PB
 KP_RULES = np.array(
@@ -102,7 +102,7 @@ def _bilinear(table, x, y):
     )
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def fuzzy_pi(state, params, meas, ref, ts, out):
     """Fuzzy-adaptive position PI of the module docstring (speed command out)."""
     k_ratio = params[K]

@@ -13,15 +13,16 @@ constant: under a ramp disturbance d = a t its estimate settles at z2 = d - 2a/w
 dynamics e1' = e2 - l1 e1, e2' = a - l2 e1 at rest give e2 = l1 a / l2). The GPIO also models
 dd/dt and tracks the ramp with no steady error (Sira-Ramirez, GPI observers).
 
-The observer is linear, so it is discretised exactly (zero-order hold on u and w over one sample,
-scipy.signal.cont2discrete) and runs as z[k+1] = Ad z[k] + Bd [u[k], w[k]], stable for any wo Ts.
+The observer is linear, so it is discretised exactly (zero-order hold on u and w over one sample:
+expm of the block matrix [[A, B], [0, 0]] Ts gives [[Ad, Bd], [0, I]]) and runs as
+z[k+1] = Ad z[k] + Bd [u[k], w[k]], stable for any wo Ts.
 """
 
 import math
 
 import numba as nb
 import numpy as np
-from scipy.signal import cont2discrete
+from scipy.linalg import expm
 
 
 def observer_gains(order: int, bandwidth_rad_s: float) -> np.ndarray:
@@ -40,8 +41,11 @@ def discrete_observer(order: int, bandwidth_rad_s: float, b: float, ts: float) -
     inputs = np.zeros((order, 2))
     inputs[0, 0] = b  # b u enters the speed estimate
     inputs[:, 1] = gains  # the measured speed drives every row
-    ad, bd, *_ = cont2discrete((a, inputs, np.eye(order), np.zeros((order, 2))), ts, "zoh")
-    return np.concatenate([ad.ravel(), bd.ravel()])
+    block = np.zeros((order + 2, order + 2))
+    block[:order, :order] = a
+    block[:order, order:] = inputs
+    discrete = expm(block * ts)
+    return np.concatenate([discrete[:order, :order].ravel(), discrete[:order, order:].ravel()])
 
 
 @nb.njit(cache=True, error_model="numpy")

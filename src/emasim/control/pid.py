@@ -16,13 +16,12 @@ x' = K w, and places both poles at -alpha_p.
 import math
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field, model_validator
 
 from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
 from ..numerics import clamp
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW = range(9)
 N_PARAMS = 9
@@ -30,7 +29,7 @@ INTEGRAL, DERIVATIVE, Y_PREV, STARTED = range(4)
 N_STATE = 4
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def pid(state, params, meas, ref, ts, out):
     """PID law of the module docstring; params and state laid out by KP..KAW, INTEGRAL..STARTED."""
     y = meas[int(params[CHANNEL])]

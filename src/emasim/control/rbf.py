@@ -25,20 +25,19 @@ range (b = 0.5), the paper's choice; W(0) = 0.
 import math
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
 from ..numerics import boundary_layer, clamp
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 C, EPS, PHI, Q, GAMMA, G, K, I_MAX, W_MAX, CURRENT_MODE = range(10)
 E_SCALE, DE_SCALE, WIDTH, N_NODES, CENTRES = range(10, 15)
 STARTED, W_REF, F_HAT, WEIGHTS = range(4)
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def rbf_sliding_mode(state, params, meas, ref, ts, out):
     """RBF-network sliding-mode position law of the module docstring, one sample."""
     k_ratio = params[K]

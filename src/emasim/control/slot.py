@@ -9,8 +9,9 @@ A controller is a compiled function ``f(state, params, meas, ref, ts, out)``:
     ts     float64       sample period (s)
     out    float64[::1]  command and its rate (O_*), written
 
-Every library controller is compiled eagerly with exactly :data:`CONTROLLER_SIG` and
-``cache=True``; the engine receives it as a first-class function value
+Every library controller is compiled with exactly :data:`CONTROLLER_SIG` and ``cache=True``
+(:func:`controller_law`, when a :class:`Compiled` is made); the engine receives it as a
+first-class function value
 (:data:`CONTROLLER_TYPE`), so changing the controller never recompiles the loop. A user's own
 ``@numba.njit(CONTROLLER_SIG)`` function plugs in the same way.
 """
@@ -21,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
+import numba as nb
 import numpy as np
 from numba import types
 from pydantic import BaseModel, ConfigDict
@@ -67,6 +69,18 @@ class Compiled:
     params: np.ndarray
     state: np.ndarray
     commands: Literal["current", "speed"] = "current"
+
+    def __post_init__(self):
+        # a law decorated with controller_law is compiled here, on first use (from the disk
+        # cache when warm), so that importing the library does not load every controller
+        if CONTROLLER_SIG.args not in self.function.overloads:
+            self.function.compile(CONTROLLER_SIG)
+
+
+def controller_law(function: Callable) -> Callable:
+    """Decorator of library controller laws: numba-compiled with the engine's conventions
+    (``cache=True``, numpy error model), compiled to :data:`CONTROLLER_SIG` when first used."""
+    return nb.njit(cache=True, error_model="numpy")(function)
 
 
 class ControllerConfig(BaseModel):

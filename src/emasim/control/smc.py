@@ -12,18 +12,17 @@ error of about phi |d| / eps. eps must exceed the disturbance |d| (rad/s^2) for 
 
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..interface import M_SPEED, O_RATE, O_VALUE, R_RATE, R_VALUE
 from ..numerics import boundary_layer, clamp
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 EPS, Q, PHI, B, LIMIT = range(5)
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def sliding_mode_speed(state, params, meas, ref, ts, out):
     """Classic SMC of the module docstring."""
     s = meas[M_SPEED] - ref[R_VALUE]
@@ -41,7 +40,7 @@ class SpeedSMC(ControllerConfig):
         default=6000.0, gt=0, description="eps: must exceed the disturbance |d| = |TL|/J"
     )
     reaching_rate_per_s: float = Field(default=300.0, ge=0, description="q")
-    boundary_layer_rad_s: float = Field(default=2.0, ge=0, description="phi; 0 = pure sign")
+    boundary_layer_rad_s: float = Field(default=1.0, ge=0, description="phi; 0 = pure sign")
 
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         params = np.array(

@@ -32,7 +32,7 @@ from pydantic import Field
 from ..interface import M_SPEED, O_RATE, O_VALUE, R_RATE, R_VALUE
 from ..numerics import clamp, sign
 from .observers import discrete_observer, observer_step
-from .slot import CONTROLLER_SIG, Compiled, ControllerConfig, PlantFacts
+from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 BETA, K, MU, ALPHA, IMPROVED, U_MAX, B, LIMIT, OBSERVER, FEEDFORWARD, OBS = range(11)
 U1, STARTED, Z = range(3)  # Z: first of the 3 GPIO states
@@ -49,7 +49,7 @@ def _sat2(x, mu, alpha):
     return sign(x) if abs(x) >= mu else x * abs(x) / mu ** (2.0 * alpha)
 
 
-@nb.njit(CONTROLLER_SIG, cache=True, error_model="numpy")
+@controller_law
 def super_twisting(state, params, meas, ref, ts, out):
     """The three super-twisting laws of the module docstring, one sample."""
     w = meas[M_SPEED]

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import tomli_w
 
 RPM_PER_RAD_S = 30.0 / np.pi
@@ -41,9 +42,14 @@ class Result:
         """Sample times (s)."""
         return self["t_s"]
 
-    def to_pandas(self) -> pd.DataFrame:
-        """The traces as a DataFrame, one column per signal (names carry units)."""
+    def to_pandas(self):
+        """The traces as a pandas DataFrame, one column per signal (names carry units)."""
+        import pandas as pd  # imported here: it costs start-up time and runs do not need it
+
         return pd.DataFrame(self.data, columns=list(self.columns))
+
+    def _to_arrow(self) -> pa.Table:
+        return pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
 
     def save(self, folder: str | Path, plot: bool = True) -> Path:
         """Write the run folder atomically (replacing an existing one) and return its path."""
@@ -51,7 +57,7 @@ class Result:
         folder.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=folder.parent))
         try:
-            self.to_pandas().to_parquet(tmp / "result.parquet", index=False)
+            pq.write_table(self._to_arrow(), tmp / "result.parquet")
             (tmp / "metrics.json").write_text(json.dumps(self.metrics, indent=2) + "\n")
             (tmp / "meta.json").write_text(json.dumps(self.meta, indent=2) + "\n")
             (tmp / "scenario.toml").write_text(tomli_w.dumps(self.scenario))
@@ -69,10 +75,10 @@ class Result:
     def load(cls, folder: str | Path) -> "Result":
         """Read a run folder written by :meth:`save`."""
         folder = Path(folder)
-        frame = pd.read_parquet(folder / "result.parquet")
+        table = pq.read_table(folder / "result.parquet")
         return cls(
-            columns=tuple(frame.columns),
-            data=frame.to_numpy(dtype=np.float64),
+            columns=tuple(table.column_names),
+            data=np.column_stack([c.to_numpy() for c in table.columns]).astype(np.float64),
             scenario=tomllib.loads((folder / "scenario.toml").read_text()),
             meta=json.loads((folder / "meta.json").read_text()),
             metrics=json.loads((folder / "metrics.json").read_text()),
