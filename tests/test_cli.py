@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from emasim.cli import app
 from emasim.scenarios.loader import validate_scenario
-from emasim.sim.result import Result
+from emasim.sim.result import Comparison, Result
 from emasim.sim.runner import run_scenario
 
 runner = CliRunner()
@@ -30,7 +30,9 @@ def test_list_shows_scenarios_and_controllers():
 @pytest.fixture(scope="module")
 def run_folder(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "speed"
-    result = invoke("run", "speed-step", "--set", "duration_s=0.5", "--out", str(out))
+    result = invoke(
+        "run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.5", "--out", str(out)
+    )
     assert result.exit_code == 0, result.output
     return out, result.output
 
@@ -52,6 +54,21 @@ def test_run_writes_the_whole_folder(run_folder):
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["settling_time_s"] > 0 and "settling_time_s" in output
     assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
+
+
+def test_a_comparison_writes_one_folder_per_controller_set(tmp_path):
+    out = tmp_path / "cmp"
+    result = invoke("run", "speed-step", "--set", "duration_s=0.3", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    labels = ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
+    for label in labels:
+        assert label in result.output  # a metrics column per controller set
+    comparison = Comparison.load(out)
+    assert list(comparison.results) == labels
+    assert (out / "comparison.png").is_file() and (out / "st-smc-gpio" / "result.parquet").is_file()
+    assert comparison.metrics["SMC"]["settling_time_s"] > 0
+    names = [comparison.results[label].scenario["controllers"]["speed"]["name"] for label in labels]
+    assert names == ["pi", "smc", "st-improved", "st-gpio"]
 
 
 def test_the_saved_scenario_repeats_the_run_exactly(run_folder):

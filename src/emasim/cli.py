@@ -84,12 +84,16 @@ class _LazyProgress:
             self.bar.stop()
 
 
-def _print_metrics(metrics: dict, title: str) -> None:
+def _print_metrics(by_label: dict[str, dict], title: str) -> None:
+    """One row per metric, one column per run."""
     table = Table(title=title)
     table.add_column("metric")
-    table.add_column("value", justify="right")
-    for key, value in metrics.items():
-        table.add_row(key, f"{value:.4g}")
+    for label in by_label:
+        table.add_column(label, justify="right")
+    keys = list(dict.fromkeys(k for m in by_label.values() for k in m))
+    for key in keys:
+        cells = [by_label[label].get(key) for label in by_label]
+        table.add_row(key, *("" if v is None else f"{v:.4g}" for v in cells))
     console.print(table)
 
 
@@ -118,24 +122,31 @@ def run(
     ] = None,
     plot: Annotated[bool, typer.Option(help="write plot.png")] = True,
 ) -> None:
-    """Run a scenario; write the run folder and print its metrics."""
+    """Run a scenario (every controller set it compares, or the one chosen); write the run
+    folder and print the metrics."""
     from .scenarios.loader import load_scenario
-    from .sim.runner import run_scenario
+    from .sim.runner import run_comparison, run_scenario
 
     try:
         sc = load_scenario(scenario, settings=setting or [], controllers=controller or [])
         progress = _LazyProgress(f"simulating {sc.name}")
         try:
-            result = run_scenario(sc, progress=progress)
+            if sc.compare:
+                result = run_comparison(sc, progress=progress)
+                by_label = result.metrics
+            else:
+                result = run_scenario(sc, progress=progress)
+                by_label = {sc.controllers_label(): result.metrics}
         finally:
             progress.close()
         folder = result.save(out or Path("runs") / sc.name, plot=plot)
     except EmasimError as err:
         _fail(err)
-    _print_metrics(result.metrics, f"{sc.name}: metrics")
+    _print_metrics(by_label, f"{sc.name}: metrics")
     console.print(
-        f"simulated {sc.duration_s:g} s in {result.meta['simulation_wall_s']:.3f} s "
-        f"(real-time factor {result.meta['real_time_factor']:.4f}); wrote {folder}/",
+        f"simulated {sc.duration_s:g} s x {len(by_label)} in "
+        f"{result.meta['simulation_wall_s']:.3f} s (real-time factor "
+        f"{result.meta['real_time_factor']:.4f}); wrote {folder}/",
         highlight=False,
     )
 

@@ -1,4 +1,4 @@
-"""Figures of a run: the response, the inner loop's command and the motor current."""
+"""Figures: one run (response, inner command, current) or several runs overlaid."""
 
 import matplotlib
 
@@ -46,4 +46,40 @@ def plot_result(result, title: str | None = None):
     name = title or result.scenario.get("name", "")
     if name:
         axes[0].set_title(name)
+    return fig
+
+
+def _output(result):
+    """(label, unit scale, column, reference column) of the loop a run closes."""
+    if bool(np.isfinite(result["position_ref_m"]).any()):
+        if "rudder_deg" in result.scenario.get("reference", {}):
+            return "rudder angle (deg)", 180.0 / np.pi, "rudder_angle_rad", None
+        return "position (mm)", 1e3, "actuator_position_m", "position_ref_m"
+    return "speed (rpm)", RPM_PER_RAD_S, "motor_speed_rad_s", "speed_ref_rad_s"
+
+
+def plot_comparison(results: dict, title: str | None = None):
+    """Runs of several controller sets overlaid: output and reference, tracking error, current."""
+    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
+    first = next(iter(results.values()))
+    label, scale, column, ref_column = _output(first)
+    if ref_column is None:  # rudder: the reference goes through the arm of the rudder stage
+        arm = first.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
+        reference = first["position_ref_m"] / arm
+    else:
+        reference = first[ref_column]
+    axes[0].plot(first.t, scale * reference, "k--", lw=1, label="reference")
+    for name, result in results.items():
+        axes[0].plot(result.t, scale * result[column], lw=1.2, label=name)
+        axes[1].plot(result.t, scale * (reference - result[column]), lw=1.0, label=name)
+        axes[2].plot(result.t, result["iq_A"], lw=0.8, label=name)
+    axes[0].set_ylabel(label)
+    axes[1].set_ylabel(f"error, {label}")
+    axes[2].set_ylabel("iq (A)")
+    axes[2].set_xlabel("time (s)")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    if title:
+        axes[0].set_title(title)
     return fig

@@ -40,7 +40,9 @@ def run_metrics(result) -> dict:
         ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
     t_end = t[-1]
     t_load = load_step_time(result.scenario)
-    t_step_end = t_load if t_load is not None and t_load > t[0] else t_end
+    if t_load is not None and not t[0] < t_load < t_end:
+        t_load = None  # the load comes after the end of the run
+    t_step_end = t_load if t_load is not None else t_end
     before = t < t_step_end
     final = ref[before][-1]
     info = m.step_info(
@@ -57,7 +59,7 @@ def run_metrics(result) -> dict:
     out[f"steady_error_mean_{unit}"] = stats.mean
     out[f"steady_error_std_{unit}"] = stats.std
     out[f"steady_error_rms_{unit}"] = stats.rms
-    if t_load is not None and t_load < t_end:
+    if t_load is not None:
         rec = m.load_recovery(t, y, ref, t_load, band=0.02 * abs(final), t_end=t_end)
         out[f"load_dip_{unit}"] = rec.dip
         out["load_recovery_time_s"] = rec.recovery_time

@@ -85,6 +85,8 @@ def load_scenario(
 ) -> Scenario:
     """Read, override and validate a scenario; raise InputError naming the field on failure."""
     raw, source = read_scenario_file(name_or_path)
+    if controllers:
+        raw.pop("compare", None)  # an explicit choice runs that one controller set
     for choice in controllers:
         apply_controller_choice(raw, choice)
     for setting in settings:

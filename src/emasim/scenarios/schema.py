@@ -152,8 +152,33 @@ def _from_cascade(section, scenario: dict):
     return _merge(cascade, section)
 
 
+class Variant(Strict):
+    """One entry of a comparison: a label and the controllers it runs."""
+
+    label: str = Field(min_length=1, max_length=40)
+    controllers: Controllers
+
+
+def _check_loops(controllers: Controllers, loop: str, where: str) -> None:
+    """Refuse a position controller on a speed reference, and a position reference without one."""
+    if loop == "position" and controllers.position is None:
+        raise ValueError(
+            f"the reference is a position, so {where}.position is needed "
+            "(e.g. --controller position=pid)"
+        )
+    if loop == "speed" and controllers.position is not None:
+        raise ValueError(
+            "the reference is a speed (reference.speed_rpm), so the position loop is open: "
+            f"remove {where}.position"
+        )
+
+
 class Scenario(Strict):
-    """One experiment: plant, sensors, controllers, reference, loads, timing."""
+    """One experiment: plant, sensors, controllers, reference, loads, timing.
+
+    ``compare`` lists controller sets to run one after the other on the same experiment (the
+    paper's comparisons); ``controllers`` is what a single run uses.
+    """
 
     name: str = Field(min_length=1, max_length=80)
     description: str = ""
@@ -165,6 +190,7 @@ class Scenario(Strict):
     controllers: Controllers = Controllers()
     reference: Reference
     load: Load = Load()
+    compare: list[Variant] = []
 
     @model_validator(mode="before")
     @classmethod
@@ -174,24 +200,44 @@ class Scenario(Strict):
             data["plant"] = _from_preset(data.get("plant", {}), PRESETS, "plant")
             data["sensors"] = _from_preset(data.get("sensors", {}), SENSOR_PRESETS, "sensors")
             data["controllers"] = _from_cascade(data.get("controllers", {}), data)
+            if isinstance(data.get("compare"), list):
+                data["compare"] = [
+                    {**v, "controllers": _from_cascade(v.get("controllers", {}), data)}
+                    if isinstance(v, dict)
+                    else v
+                    for v in data["compare"]
+                ]
         return data
 
     @model_validator(mode="after")
     def _loops_match(self):
         loop = self.reference.loop
-        if loop == "position" and self.controllers.position is None:
-            raise ValueError(
-                "the reference is a position, so controllers.position is needed "
-                "(e.g. --controller position=pid)"
-            )
-        if loop == "speed" and self.controllers.position is not None:
-            raise ValueError(
-                "the reference is a speed (reference.speed_rpm), so the position loop is open: "
-                "remove controllers.position"
-            )
+        _check_loops(self.controllers, loop, "controllers")
+        for i, variant in enumerate(self.compare):
+            _check_loops(variant.controllers, loop, f"compare.{i}.controllers")
+        labels = [v.label for v in self.compare]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"compare labels must differ, got {labels}")
         if self.duration_s < self.solver.sample_period_s:
             raise ValueError("duration_s must be at least one solver.sample_period_s")
         return self
+
+    def variants(self) -> list[tuple[str, "Scenario"]]:
+        """(label, single-run scenario) of every comparison entry; just this one if none."""
+        if not self.compare:
+            return [(self.controllers_label(), self)]
+        return [
+            (v.label, self.model_copy(update={"controllers": v.controllers, "compare": []}))
+            for v in self.compare
+        ]
+
+    def controllers_label(self) -> str:
+        """A short label of the controllers, e.g. 'position=pid, speed=pi'."""
+        c = self.controllers
+        parts = ([f"position={c.position.name}"] if c.position is not None else []) + [
+            f"speed={c.speed.name}"
+        ]
+        return ", ".join(parts)
 
     def setup(self) -> Setup:
         """Compile this scenario into the arrays the engine runs."""

@@ -1,9 +1,11 @@
-"""The Result of a run: traces with unit-named columns, the scenario, metadata; save and load.
+"""Results: the traces of a run, or of a comparison of several controller sets; save and load.
 
 A run folder holds ``result.parquet`` (traces), ``metrics.json``, ``scenario.toml`` (the fully
 resolved scenario), ``meta.json`` (package version, seed, wall time of the simulation) and
-``plot.png``. It is written under a temporary name and renamed into place, so a crash never
-leaves half a result.
+``plot.png``. A comparison folder holds one such folder per controller set, named by its label,
+and beside them ``comparison.png``, ``metrics.json`` (label -> metrics), ``scenario.toml`` and
+``meta.json``. Folders are written under a temporary name and renamed into place, so a crash
+never leaves half a result.
 """
 
 import json
@@ -51,25 +53,18 @@ class Result:
     def _to_arrow(self) -> pa.Table:
         return pa.table({name: self.data[:, i] for i, name in enumerate(self.columns)})
 
+    def write_files(self, folder: Path, plot: bool = True) -> None:
+        """Write the run's files into an existing folder (see :meth:`save`)."""
+        pq.write_table(self._to_arrow(), folder / "result.parquet")
+        _write_records(folder, self.metrics, self.meta, self.scenario)
+        if plot:
+            from ..analysis.plots import plot_result
+
+            _save_figure(plot_result(self), folder / "plot.png")
+
     def save(self, folder: str | Path, plot: bool = True) -> Path:
         """Write the run folder atomically (replacing an existing one) and return its path."""
-        folder = Path(folder)
-        folder.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=folder.parent))
-        try:
-            pq.write_table(self._to_arrow(), tmp / "result.parquet")
-            (tmp / "metrics.json").write_text(json.dumps(self.metrics, indent=2) + "\n")
-            (tmp / "meta.json").write_text(json.dumps(self.meta, indent=2) + "\n")
-            (tmp / "scenario.toml").write_text(tomli_w.dumps(self.scenario))
-            if plot:
-                from ..analysis.plots import plot_result
-
-                plot_result(self).savefig(tmp / "plot.png", dpi=110)
-            _replace_dir(tmp, folder)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-        return folder
+        return write_atomically(folder, lambda tmp: self.write_files(tmp, plot))
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
@@ -83,6 +78,81 @@ class Result:
             meta=json.loads((folder / "meta.json").read_text()),
             metrics=json.loads((folder / "metrics.json").read_text()),
         )
+
+
+@dataclass
+class Comparison:
+    """Runs of several controller sets on one experiment, by label (in the scenario's order)."""
+
+    results: dict[str, Result]
+    scenario: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def metrics(self) -> dict[str, dict]:
+        return {label: r.metrics for label, r in self.results.items()}
+
+    def write_files(self, folder: Path, plot: bool = True) -> None:
+        """Write every run into a sub-folder named by its label, and the overlay beside them."""
+        for label, result in self.results.items():
+            sub = folder / slug(label)
+            sub.mkdir()
+            result.write_files(sub, plot=False)
+        _write_records(folder, self.metrics, self.meta, self.scenario)
+        if plot:
+            from ..analysis.plots import plot_comparison
+
+            _save_figure(
+                plot_comparison(self.results, self.scenario.get("name")), folder / "comparison.png"
+            )
+
+    def save(self, folder: str | Path, plot: bool = True) -> Path:
+        """Write the comparison folder atomically and return its path."""
+        return write_atomically(folder, lambda tmp: self.write_files(tmp, plot))
+
+    @classmethod
+    def load(cls, folder: str | Path) -> "Comparison":
+        """Read a comparison folder written by :meth:`save`."""
+        folder = Path(folder)
+        metrics = json.loads((folder / "metrics.json").read_text())
+        return cls(
+            results={label: Result.load(folder / slug(label)) for label in metrics},
+            scenario=tomllib.loads((folder / "scenario.toml").read_text()),
+            meta=json.loads((folder / "meta.json").read_text()),
+        )
+
+
+def slug(label: str) -> str:
+    """A folder name for a label: letters, digits and dashes."""
+    return "".join(ch if ch.isalnum() else "-" for ch in label.lower()).strip("-") or "run"
+
+
+def _write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:
+    (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    (folder / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
+    (folder / "scenario.toml").write_text(tomli_w.dumps(scenario))
+
+
+def _save_figure(figure, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+def write_atomically(folder: str | Path, write) -> Path:
+    """Call ``write(tmp)`` on a fresh temporary folder beside ``folder``, then move it into
+    place (replacing an old ``folder``); on any error nothing is left behind."""
+    folder = Path(folder)
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=folder.parent))
+    try:
+        write(tmp)
+        _replace_dir(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return folder
 
 
 def _replace_dir(new: Path, target: Path) -> None:

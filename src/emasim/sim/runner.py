@@ -8,7 +8,21 @@ import numba
 from .. import __version__
 from ..analysis.report import run_metrics
 from .engine import simulate
-from .result import Result
+from .result import Comparison, Result
+
+
+def _meta(scenario, wall_s: float) -> dict:
+    """What a saved result needs to be regenerated and judged: versions, seed, timings."""
+    return {
+        "emasim_version": __version__,
+        "seed": scenario.seed,
+        "scenario": scenario.name,
+        "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "numba": numba.__version__,
+        "simulation_wall_s": wall_s,
+        "real_time_factor": wall_s / scenario.duration_s,
+    }
 
 
 def run_scenario(scenario, progress=None) -> Result:
@@ -19,16 +33,26 @@ def run_scenario(scenario, progress=None) -> Result:
     """
     result = simulate(scenario.setup(), progress=progress)
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
-    result.meta.update(
-        {
-            "emasim_version": __version__,
-            "seed": scenario.seed,
-            "scenario": scenario.name,
-            "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "python": platform.python_version(),
-            "numba": numba.__version__,
-            "real_time_factor": result.meta["simulation_wall_s"] / scenario.duration_s,
-        }
-    )
+    result.meta = _meta(scenario, result.meta["simulation_wall_s"])
     result.metrics = run_metrics(result)
     return result
+
+
+def run_comparison(scenario, progress=None) -> Comparison:
+    """Run every controller set of ``scenario.compare`` (or its one set) on the experiment."""
+    variants = scenario.variants()
+    results = {}
+    for i, (label, variant) in enumerate(variants):
+        part = None
+        if progress is not None:
+
+            def part(fraction, i=i):
+                progress((i + fraction) / len(variants))
+
+        results[label] = run_scenario(variant, progress=part)
+    wall = sum(r.meta["simulation_wall_s"] for r in results.values())
+    meta = _meta(scenario, wall)
+    meta["real_time_factor"] = wall / (scenario.duration_s * len(variants))
+    return Comparison(
+        results, scenario=scenario.model_dump(mode="json", exclude_none=True), meta=meta
+    )
