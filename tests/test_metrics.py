@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import emasim.analysis.metrics as m
 from emasim.analysis.metrics import (
     Chattering,
     chattering,
@@ -354,3 +355,13 @@ def test_error_stats_rms_decomposes(values):
     assert stats.rms**2 == pytest.approx(stats.mean**2 + stats.std**2, rel=1e-9, abs=1e-9)
     assert stats.max_abs == np.max(np.abs(e))
     assert abs(stats.mean) <= stats.max_abs * (1 + 1e-12)
+
+
+def test_sine_fluctuation_is_the_ripple_left_after_the_fitted_sine():
+    t = np.linspace(0.0, 20.0, 20001)
+    ripple = 0.3 * np.sin(2 * np.pi * 7.0 * t)
+    y = 5.0 + 19.0 * np.sin(2 * np.pi * 0.05 * t + 0.4) + ripple
+    assert m.sine_fluctuation(t, y, 0.05) == pytest.approx(0.3, rel=2e-3)
+    assert m.sine_fluctuation(t, y - ripple, 0.05) < 1e-9
+    with pytest.raises(ValueError, match="frequency_Hz"):
+        m.sine_fluctuation(t, y, 0.0)

@@ -31,11 +31,11 @@ from emasim.control.slot import Compiled, PlantFacts
 from emasim.control.smc import SpeedSMC
 from emasim.control.super_twisting import (
     BETA,
-    K,
     U1,
     U_MAX,
-    Z,
+    K,
     SpeedSuperTwisting,
+    Z,
     eq37_violations,
 )
 from emasim.interface import M_SPEED, N_MEAS, N_OUT, N_REF, O_VALUE, R_VALUE
@@ -301,7 +301,7 @@ LAYERS = [(0.1, 1.0, SINE.rate_bound), (0.5, 0.6, 2.0 * SINE.rate_bound)]
 
 
 @functools.cache
-def sine_run(name: str, h: float, mu: float = 0.5, alpha: float = 0.6, rate_bound: float = 100.0):
+def sine_run(name: str, h: float, mu=0.5, alpha=0.6, rate_bound=SINE.rate_bound) -> Run:
     """A 4 s run under SINE from x1(0) = 1, cached: several tests look at the same runs."""
     cfg = st_config(name, rate_bound=rate_bound, boundary_layer_rad_s=mu, exponent=alpha)
     return simulate(build(cfg, h), h, 4.0, x1_0=1.0, disturbance=SINE)
@@ -385,7 +385,7 @@ def test_gpio_rejects_step_and_ramp_faster_and_estimates_d(disturbance):
     k0 = runs["st-gpio"].since(disturbance.start_s)
     peak = {name: np.abs(run.x1[k0:]).max() for name, run in runs.items()}
     iae = {name: h * np.abs(run.x1[k0:]).sum() for name, run in runs.items()}
-    print(f"peak |x1| {peak}, integral |x1| {iae}")
+    print(", ".join(f"{n}: peak |x1| {peak[n]:.4f}, integral |x1| {iae[n]:.5f}" for n in runs))
     assert peak["st-gpio"] <= 0.3 * peak["st-improved"]
     assert iae["st-gpio"] <= 0.2 * iae["st-improved"]
 

@@ -31,6 +31,7 @@ __all__ = [
     "peak_value",
     "rise_time",
     "settling_time",
+    "sine_fluctuation",
     "sine_tracking",
     "step_info",
     "window_mask",
@@ -597,6 +598,30 @@ def chattering(
     return Chattering(amplitude=amplitude, frequency_Hz=_parabolic_peak(spectrum, k) / (n * dt))
 
 
+def _sine_basis(t: np.ndarray, frequency_Hz: float) -> np.ndarray:
+    """Columns sin(2 pi f t), cos(2 pi f t), 1 for a least-squares sine fit."""
+    omega_t = 2.0 * np.pi * frequency_Hz * t
+    return np.column_stack([np.sin(omega_t), np.cos(omega_t), np.ones_like(t)])
+
+
+def sine_fluctuation(
+    t: ArrayLike, y: ArrayLike, frequency_Hz: float, window: Window = None
+) -> float:
+    """Half peak-to-peak of what is left of ``y`` after its best-fitting sine at ``f``.
+
+    The fluctuation of a signal that should be a sine (e.g. a velocity under sine tracking):
+    ``y`` is fitted over the window by least squares to ``a sin(2 pi f t) + b cos(2 pi f t)
+    + c`` and the result is ``(max(r) - min(r)) / 2`` of the residual ``r`` (unit of ``y``).
+    """
+    t = _time(t)
+    y = _signal("y", y, t)
+    frequency_Hz = _positive("frequency_Hz", frequency_Hz)
+    tw, yw = _windowed(t, window, y)
+    basis = _sine_basis(tw, frequency_Hz)
+    residual = yw - basis @ np.linalg.lstsq(basis, yw, rcond=None)[0]
+    return float(np.ptp(residual) / 2.0)
+
+
 def sine_tracking(
     t: ArrayLike,
     y: ArrayLike,
@@ -639,8 +664,7 @@ def sine_tracking(
     reference = _signal("reference", reference, t)
     frequency_Hz = _positive("frequency_Hz", frequency_Hz)
     tw, yw, rw = _windowed(t, window, y, reference)
-    omega_t = 2.0 * np.pi * frequency_Hz * tw
-    basis = np.column_stack([np.sin(omega_t), np.cos(omega_t), np.ones_like(tw)])
+    basis = _sine_basis(tw, frequency_Hz)
     (a_y, a_r), (b_y, b_r), _ = np.linalg.lstsq(basis, np.column_stack([yw, rw]), rcond=None)[0]
     amplitude_ref = np.hypot(a_r, b_r)
     if amplitude_ref == 0.0:

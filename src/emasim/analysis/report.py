@@ -1,4 +1,25 @@
-"""The metrics a run reports, chosen by the loop it closes (SPEC section 4 definitions)."""
+"""The metrics a run reports, chosen by the experiment it is (SPEC section 4 definitions).
+
+The kind follows from the scenario's reference: a motor speed, a rod position or a rudder
+angle, as a step or a sine. Every window and band is stated here, once:
+
+* step of speed (rpm) or rod position (mm): rise time 10-90 %, 2 % settling time, overshoot,
+  dead-zone time (position: until the rod has moved 10 um), on the interval before the load
+  step; steady-state error mean/std/RMS over the last 20 % of that interval; the load step's
+  dip and the time to return within 2 % of the set-point; chattering of the current command
+  (half peak-to-peak, dominant frequency) over the last 20 % of the run;
+* sine of speed: max |error| and phase lag (fitted sine) over the whole run, and the load
+  step's dip and recovery within 1 % of the amplitude;
+* rudder step (the bench, tables 2-5), in deg and deg/s: rise time 10-90 %, settling time
+  into a 5 % band (the paper's PID oscillates +-0.2 deg about 4.72 deg, over 4 %), and over the
+  steady window from BENCH_STEADY_S to the end: chattering of the rudder angle, error
+  mean/std/RMS, velocity fluctuation (half peak-to-peak about its trend) and velocity error
+  statistics; the peak rudder velocity over the run;
+* rudder sine (tables 6-7): max tracking error and phase lag after the first BENCH_STEADY_S,
+  whether the rudder first moves against the command (below -REVERSE_DEG in the first second),
+  the peak velocity in the first second, the velocity fluctuation (half peak-to-peak of the
+  velocity about its best-fitting sine) after BENCH_STEADY_S.
+"""
 
 import math
 
@@ -7,8 +28,12 @@ import numpy as np
 from . import metrics as m
 
 RPM_PER_RAD_S = 30.0 / math.pi
+DEG_PER_RAD = 180.0 / math.pi
 STEADY_FRACTION = 0.2  # steady-state windows: the last 20 % before the load step / the end
 DEAD_ZONE_MM = 0.01  # the output has "moved" once it is 10 um from where it started
+BENCH_STEADY_S = 2.0  # bench experiments: steady-state statistics from this time on
+BENCH_SETTLING_BAND = 0.05
+REVERSE_DEG = 0.01
 
 
 def load_step_time(scenario: dict) -> float | None:
@@ -20,39 +45,64 @@ def load_step_time(scenario: dict) -> float | None:
     return None
 
 
-def run_metrics(result) -> dict:
-    """Metrics of a run, keys named with their unit, windows stated in the keys' docs.
+def reference_kind(scenario: dict) -> tuple[str, str]:
+    """(quantity, shape): quantity 'speed', 'position' or 'rudder'; shape 'sine' or 'step'."""
+    reference = scenario.get("reference", {})
+    for key, quantity in (("speed_rpm", "speed"), ("position_mm", "position"),
+                          ("rudder_deg", "rudder")):
+        if reference.get(key):
+            shape = "sine" if any(t.get("type") == "sine" for t in reference[key]) else "step"
+            return quantity, shape
+    raise ValueError("scenario has no reference")
 
-    Step response (of motor speed in rpm, or rod position in mm): rise time 10-90 %, 2 %
-    settling time, overshoot, dead-zone time (position: first 10 um of motion), all computed on
-    the interval before the load step. Steady-state error mean/std/RMS over the last 20 % of
-    that interval. Load rejection: the dip and the time to return within the 2 % band.
-    Chattering of the current command (half peak-to-peak, dominant frequency) over the last
-    20 % of the run.
-    """
+
+def rudder_traces(result) -> tuple[np.ndarray, ...]:
+    """Rudder angle, its reference (deg), rudder rate and reference rate (deg/s)."""
+    arm = result.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
     t = result.t
-    position_run = bool(np.isfinite(result["position_ref_m"]).any())
-    if position_run:
+    angle = DEG_PER_RAD * result["rudder_angle_rad"]
+    reference = DEG_PER_RAD * result["position_ref_m"] / arm
+    rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / arm
+    return angle, reference, rate, np.gradient(reference, t)
+
+
+def run_metrics(result) -> dict:
+    """Metrics of a run, keyed with their unit (see the module docstring for definitions)."""
+    quantity, shape = reference_kind(result.scenario)
+    if quantity == "rudder":
+        return bench_sine_metrics(result) if shape == "sine" else bench_step_metrics(result)
+    if shape == "sine":
+        return speed_sine_metrics(result)
+    return step_metrics(result, quantity)
+
+
+def _load_window(result) -> tuple[float | None, float]:
+    """(load step time if inside the run, end of the interval before it)."""
+    t = result.t
+    t_load = load_step_time(result.scenario)
+    if t_load is not None and not t[0] < t_load < t[-1]:
+        t_load = None  # the load comes after the end of the run
+    return t_load, (t_load if t_load is not None else t[-1])
+
+
+def step_metrics(result, quantity: str) -> dict:
+    """Step of motor speed (rpm) or rod position (mm)."""
+    t = result.t
+    if quantity == "position":
         unit, y, ref = "mm", 1e3 * result["actuator_position_m"], 1e3 * result["position_ref_m"]
     else:
         unit = "rpm"
         y = RPM_PER_RAD_S * result["motor_speed_rad_s"]
         ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
     t_end = t[-1]
-    t_load = load_step_time(result.scenario)
-    if t_load is not None and not t[0] < t_load < t_end:
-        t_load = None  # the load comes after the end of the run
-    t_step_end = t_load if t_load is not None else t_end
+    t_load, t_step_end = _load_window(result)
     before = t < t_step_end
     final = ref[before][-1]
     info = m.step_info(
-        t[before],
-        y[before],
-        initial=y[0],
-        final=final,
-        dead_zone_threshold=DEAD_ZONE_MM if position_run else None,
+        t[before], y[before], initial=y[0], final=final,
+        dead_zone_threshold=DEAD_ZONE_MM if quantity == "position" else None,
     )
-    out = {f"{k}": v for k, v in info.items() if k != "peak"}
+    out = {k: v for k, v in info.items() if k != "peak"}
     out[f"peak_{unit}"] = info["peak"]
     steady = (t_step_end - STEADY_FRACTION * (t_step_end - t[0]), t_step_end - 1e-12)
     stats = m.error_stats(t, ref - y, steady)
@@ -67,4 +117,77 @@ def run_metrics(result) -> dict:
     chat = m.chattering(t, result["iq_ref_A"], tail)
     out["iq_chattering_A"] = chat.amplitude
     out["iq_chattering_frequency_Hz"] = chat.frequency_Hz
+    return {k: float(v) for k, v in out.items()}
+
+
+def _sine_frequency(scenario: dict, key: str) -> tuple[float, float]:
+    (term,) = [t for t in scenario["reference"][key] if t.get("type") == "sine"]
+    return float(term["frequency_Hz"]), abs(float(term["amplitude"]))
+
+
+def speed_sine_metrics(result) -> dict:
+    """Sine of motor speed (rpm), Fig. 6."""
+    t = result.t
+    y = RPM_PER_RAD_S * result["motor_speed_rad_s"]
+    ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
+    frequency, amplitude = _sine_frequency(result.scenario, "speed_rpm")
+    track = m.sine_tracking(t, y, ref, frequency)
+    out = {
+        "max_error_rpm": track.max_abs_error,
+        "phase_lag_deg": track.phase_lag_deg,
+        "gain": track.gain,
+    }
+    t_load, _ = _load_window(result)
+    if t_load is not None:
+        rec = m.load_recovery(t, y, ref, t_load, band=0.01 * amplitude)
+        out["load_dip_rpm"] = rec.dip
+        out["load_recovery_time_s"] = rec.recovery_time
+    return {k: float(v) for k, v in out.items()}
+
+
+def bench_step_metrics(result) -> dict:
+    """Rudder step on the virtual bench (tables 2-5), deg and deg/s."""
+    t = result.t
+    angle, reference, rate, reference_rate = rudder_traces(result)
+    final = reference[-1]
+    steady = (BENCH_STEADY_S, t[-1])
+    error = m.error_stats(t, reference - angle, steady)
+    rate_error = m.error_stats(t, reference_rate - rate, steady)
+    chat = m.chattering(t, angle, steady)
+    out = {
+        "rise_time_s": m.rise_time(t, angle, initial=0.0, final=final),
+        "settling_time_s": m.settling_time(
+            t, angle, final=final, initial=0.0, band=BENCH_SETTLING_BAND
+        ),
+        "chatter_amplitude_deg": chat.amplitude,
+        "chatter_frequency_Hz": chat.frequency_Hz,
+        "steady_error_mean_deg": error.mean,
+        "steady_error_std_deg": error.std,
+        "steady_error_rms_deg": error.rms,
+        "peak_velocity_deg_s": m.peak_value(t, rate),
+        "velocity_fluctuation_deg_s": m.fluctuation_amplitude(t, rate, steady),
+        "velocity_error_mean_deg_s": rate_error.mean,
+        "velocity_error_std_deg_s": rate_error.std,
+        "velocity_error_rms_deg_s": rate_error.rms,
+    }
+    return {k: float(v) for k, v in out.items()}
+
+
+def bench_sine_metrics(result) -> dict:
+    """Rudder sine on the virtual bench (tables 6-7), deg and deg/s."""
+    t = result.t
+    angle, reference, rate, reference_rate = rudder_traces(result)
+    frequency, _ = _sine_frequency(result.scenario, "rudder_deg")
+    steady = (BENCH_STEADY_S, t[-1])
+    track = m.sine_tracking(t, angle, reference, frequency, steady)
+    start = (t[0], t[0] + 1.0)
+    first_second = m.window_mask(t, start)
+    out = {
+        "tracking_error_deg": track.max_abs_error,
+        "phase_lag_deg": track.phase_lag_deg,
+        "lag_s": track.lag_s,
+        "initial_reverse_motion": float(angle[first_second].min() < -REVERSE_DEG),
+        "peak_velocity_deg_s": m.peak_value(t, rate, start),
+        "velocity_fluctuation_deg_s": m.sine_fluctuation(t, rate, frequency, steady),
+    }
     return {k: float(v) for k, v in out.items()}

@@ -13,9 +13,16 @@ constant: under a ramp disturbance d = a t its estimate settles at z2 = d - 2a/w
 dynamics e1' = e2 - l1 e1, e2' = a - l2 e1 at rest give e2 = l1 a / l2). The GPIO also models
 dd/dt and tracks the ramp with no steady error (Sira-Ramirez, GPI observers).
 
-The observer is linear, so it is discretised exactly (zero-order hold on u and w over one sample:
-expm of the block matrix [[A, B], [0, 0]] Ts gives [[Ad, Bd], [0, I]]) and runs as
-z[k+1] = Ad z[k] + Bd [u[k], w[k]], stable for any wo Ts.
+The controllers run it in discrete time, designed on the exactly sampled plant rather than by
+discretising the continuous observer (which would treat the measured w as held over a sample
+and bias z2 by about (wo Ts)^2/4): with x = [w, d, dd/dt, ...] the chain of integrators
+sampled with u held gives x[k+1] = Phi x[k] + Gamma u[k] exactly, and the observer
+
+    z[k+1] = Phi z[k] + Gamma u[k] + L (w[k] - z1[k])
+
+has its error poles, the eigenvalues of Phi - L C, all at exp(-wo Ts): the images of the
+continuous design's -wo (Ackermann's formula). A constant (ESO) or ramp (GPIO) disturbance is
+then estimated with no steady error, for any wo Ts.
 """
 
 import math
@@ -32,29 +39,44 @@ def observer_gains(order: int, bandwidth_rad_s: float) -> np.ndarray:
     )
 
 
-def discrete_observer(order: int, bandwidth_rad_s: float, b: float, ts: float) -> np.ndarray:
-    """Packed [Ad (order x order), Bd (order x 2)] of the observer, row-major, for ZOH at ts."""
-    gains = observer_gains(order, bandwidth_rad_s)
-    a = np.zeros((order, order))
-    a[:, 0] = -gains
-    a[:-1, 1:] += np.eye(order - 1)  # chain of integrators: z_i' gets z_{i+1}
-    inputs = np.zeros((order, 2))
-    inputs[0, 0] = b  # b u enters the speed estimate
-    inputs[:, 1] = gains  # the measured speed drives every row
-    block = np.zeros((order + 2, order + 2))
-    block[:order, :order] = a
-    block[:order, order:] = inputs
+def sampled_plant(order: int, b: float, ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Phi, Gamma) of x = [w, d, dd/dt, ...] (order states), sampled exactly with u held."""
+    block = np.zeros((order + 1, order + 1))
+    block[: order - 1, 1:order] = np.eye(order - 1)  # w' = d + b u, d' = d1, ...
+    block[0, order] = b
     discrete = expm(block * ts)
-    return np.concatenate([discrete[:order, :order].ravel(), discrete[:order, order:].ravel()])
+    return discrete[:order, :order], discrete[:order, order]
+
+
+def discrete_observer(order: int, bandwidth_rad_s: float, b: float, ts: float) -> np.ndarray:
+    """Packed [Phi (order x order), Gamma (order), L (order)] of the sampled observer.
+
+    L places every eigenvalue of Phi - L C at exp(-wo Ts) (Ackermann: L = P(Phi) O^-1 e_n, P
+    the desired characteristic polynomial, O the observability matrix of (Phi, C)).
+    """
+    phi, gamma = sampled_plant(order, b, ts)
+    c = np.zeros(order)
+    c[0] = 1.0
+    observability = np.array([c @ np.linalg.matrix_power(phi, i) for i in range(order)])
+    pole = math.exp(-bandwidth_rad_s * ts)
+    characteristic = np.poly(np.full(order, pole))  # coefficients of (z - pole)^order
+    p_of_phi = sum(
+        coef * np.linalg.matrix_power(phi, order - i) for i, coef in enumerate(characteristic)
+    )
+    unit = np.zeros(order)
+    unit[-1] = 1.0
+    gain = p_of_phi @ np.linalg.solve(observability, unit)
+    return np.concatenate([phi.ravel(), gamma, gain])
 
 
 @nb.njit(cache=True, error_model="numpy")
 def observer_step(z, packed, u, w):
-    """z <- Ad z + Bd [u, w] in place; packed as built by :func:`discrete_observer`."""
+    """z <- Phi z + Gamma u + L (w - z1) in place; packed as built by discrete_observer."""
     n = z.size
+    innovation = w - z[0]
     new = np.empty(n)
     for i in range(n):
-        acc = packed[n * n + 2 * i] * u + packed[n * n + 2 * i + 1] * w
+        acc = packed[n * n + i] * u + packed[n * n + n + i] * innovation
         for j in range(n):
             acc += packed[n * i + j] * z[j]
         new[i] = acc
