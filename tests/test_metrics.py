@@ -365,3 +365,13 @@ def test_sine_fluctuation_is_the_ripple_left_after_the_fitted_sine():
     assert m.sine_fluctuation(t, y - ripple, 0.05) < 1e-9
     with pytest.raises(ValueError, match="frequency_Hz"):
         m.sine_fluctuation(t, y, 0.0)
+
+
+def test_integral_absolute_error_and_total_variation():
+    t = np.linspace(0.0, 2.0, 2001)
+    assert m.integral_absolute_error(t, np.sin(np.pi * t)) == pytest.approx(4 / np.pi, rel=1e-6)
+    assert m.integral_absolute_error(t, np.ones_like(t), (0.5, 1.5)) == pytest.approx(1.0)
+    # sign flips every 0.1 s: 20 jumps of 2 in 2 s (the last sample, t = 2, starts a new one)
+    square = np.where(np.floor(np.round(t * 10, 9)) % 2 == 0, 1.0, -1.0)
+    assert m.total_variation_rate(t, square) == pytest.approx(20 * 2 / 2.0)
+    assert m.total_variation_rate(t, 3 * t) == pytest.approx(3.0)

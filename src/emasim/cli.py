@@ -151,5 +151,97 @@ def run(
     )
 
 
+@app.command()
+def tune(
+    scenario: Annotated[str, typer.Argument(help="a shipped scenario name or a .toml path")],
+    controller: Annotated[
+        list[str] | None,
+        typer.Option("--controller", "-c", help="tune this choice instead of the comparison"),
+    ] = None,
+    setting: Annotated[list[str] | None, typer.Option("--set", "-s")] = None,
+    trials: Annotated[int, typer.Option(min=1, max=10000, help="runs per controller set")] = 40,
+    storage: Annotated[
+        str | None, typer.Option(help="Optuna storage URL (default sqlite in runs/tune/)")
+    ] = None,
+    save: Annotated[
+        Path | None, typer.Option(help="tuned scenario file (default runs/tune/SCENARIO.toml)")
+    ] = None,
+    seed: Annotated[int, typer.Option(min=0, help="sampler seed")] = 0,
+) -> None:
+    """Tune every controller set of a scenario with the same budget and cost (Optuna);
+    resumable; writes the scenario with the tuned gains."""
+    import tomli_w
+
+    from .scenarios.loader import (
+        apply_controller_choice,
+        apply_setting,
+        read_scenario_file,
+        validate_scenario,
+    )
+    from .tuning import tune_scenario
+
+    try:
+        raw, source = read_scenario_file(scenario)
+        if controller:
+            raw.pop("compare", None)
+        for choice in controller or []:
+            apply_controller_choice(raw, choice)
+        for item in setting or []:
+            apply_setting(raw, item)
+        sc = validate_scenario(raw, source)
+    except EmasimError as err:
+        _fail(err)
+    folder = Path("runs") / "tune"
+    folder.mkdir(parents=True, exist_ok=True)
+    storage = storage or f"sqlite:///{folder / (sc.name + '.db')}"
+
+    def report(label, before, after):
+        console.print(f"{label}: cost {before:.5g} -> {after:.5g}", highlight=False)
+
+    tuned, _ = tune_scenario(raw, sc, trials, storage, seed, report=report)
+    target = save or folder / f"{sc.name}.toml"
+    tmp = target.with_name(f".{target.name}.tmp")
+    tmp.write_text(tomli_w.dumps(tuned))
+    tmp.replace(target)
+    console.print(f"tuned scenario written to {target} (study in {storage})", highlight=False)
+
+
+@app.command()
+def reproduce(
+    out: Annotated[Path, typer.Option("--out", "-o", help="report folder")] = Path(
+        "runs/reproduce"
+    ),
+    only: Annotated[
+        list[str] | None,
+        typer.Option("--only", help="run only this experiment (repeatable)"),
+    ] = None,
+) -> None:
+    """Run every paper experiment and write report.md, report.html and tables.json."""
+    from .analysis.reproduce import EXPERIMENTS
+    from .analysis.reproduce import reproduce as run_all
+
+    names = [e.scenario for e in EXPERIMENTS]
+    unknown = [n for n in only or [] if n not in names]
+    if unknown:
+        _fail(
+            EmasimError(
+                f"--only: unknown experiment {unknown[0]!r}; choose from: {', '.join(names)}"
+            )
+        )
+    start = time.perf_counter()
+    progress = _LazyProgress("reproducing the paper")
+    try:
+        folder = run_all(out, only=only, progress=progress)
+    except EmasimError as err:
+        _fail(err)
+    finally:
+        progress.close()
+    console.print(
+        f"wrote {folder}/report.md, report.html, tables.json in "
+        f"{time.perf_counter() - start:.1f} s",
+        highlight=False,
+    )
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()

@@ -26,6 +26,7 @@ __all__ = [
     "dead_zone_time",
     "error_stats",
     "fluctuation_amplitude",
+    "integral_absolute_error",
     "load_recovery",
     "overshoot",
     "peak_value",
@@ -34,6 +35,7 @@ __all__ = [
     "sine_fluctuation",
     "sine_tracking",
     "step_info",
+    "total_variation_rate",
     "window_mask",
 ]
 
@@ -596,6 +598,27 @@ def chattering(
     spectrum = np.abs(np.fft.rfft(uniform * np.hanning(n + 1)[:-1]))
     k = 1 + int(np.argmax(spectrum[1:]))
     return Chattering(amplitude=amplitude, frequency_Hz=_parabolic_peak(spectrum, k) / (n * dt))
+
+
+def integral_absolute_error(t: ArrayLike, error: ArrayLike, window: Window = None) -> float:
+    """IAE = integral of |error| dt over the window (trapezoidal rule), unit of error times s."""
+    t = _time(t)
+    error = _signal("error", error, t)
+    tw, ew = _windowed(t, window, error)
+    return float(np.trapezoid(np.abs(ew), tw))
+
+
+def total_variation_rate(t: ArrayLike, y: ArrayLike, window: Window = None) -> float:
+    """Total variation per second, sum |y[k+1] - y[k]| / duration (unit of y per s).
+
+    A measure of control activity: a steady command scores 0, chattering scores high. It grows
+    as the sampling gets finer for a signal that jumps every sample, so compare runs at the same
+    sample period.
+    """
+    t = _time(t)
+    y = _signal("y", y, t)
+    tw, yw = _windowed(t, window, y)
+    return float(np.sum(np.abs(np.diff(yw))) / (tw[-1] - tw[0]))
 
 
 def _sine_basis(t: np.ndarray, frequency_Hz: float) -> np.ndarray:

@@ -83,3 +83,40 @@ def plot_comparison(results: dict, title: str | None = None):
     if title:
         axes[0].set_title(title)
     return fig
+
+
+def save_figure(figure, path, dpi: int = 110) -> None:
+    """Write a figure to a file and free it."""
+    figure.savefig(path, dpi=dpi)
+    plt.close(figure)
+
+
+def plot_bench(results: dict, title: str | None = None):
+    """The bench figures of the paper (16-19, 20-23): rudder angle (top) and rudder rate
+    (bottom), one column per controller set, the reference dashed."""
+    from .report import rudder_traces
+
+    fig, axes = plt.subplots(
+        2,
+        len(results),
+        sharex=True,
+        squeeze=False,
+        figsize=(5 * len(results), 6),
+        constrained_layout=True,
+    )
+    for col, (name, result) in enumerate(results.items()):
+        angle, reference, rate, reference_rate = rudder_traces(result)
+        axes[0, col].plot(result.t, reference, "k--", lw=1, label="command")
+        axes[0, col].plot(result.t, angle, lw=1.2, label="rudder angle")
+        axes[1, col].plot(result.t, reference_rate, "k--", lw=1, label="command rate")
+        axes[1, col].plot(result.t, rate, lw=0.8, label="rudder rate")
+        axes[0, col].set_title(name)
+        axes[0, col].set_ylabel("angle (deg)")
+        axes[1, col].set_ylabel("angular velocity (deg/s)")
+        axes[1, col].set_xlabel("time (s)")
+        for ax in axes[:, col]:
+            ax.grid(True, alpha=0.3)
+            ax.legend(loc="best", fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return fig

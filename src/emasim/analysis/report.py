@@ -48,8 +48,11 @@ def load_step_time(scenario: dict) -> float | None:
 def reference_kind(scenario: dict) -> tuple[str, str]:
     """(quantity, shape): quantity 'speed', 'position' or 'rudder'; shape 'sine' or 'step'."""
     reference = scenario.get("reference", {})
-    for key, quantity in (("speed_rpm", "speed"), ("position_mm", "position"),
-                          ("rudder_deg", "rudder")):
+    for key, quantity in (
+        ("speed_rpm", "speed"),
+        ("position_mm", "position"),
+        ("rudder_deg", "rudder"),
+    ):
         if reference.get(key):
             shape = "sine" if any(t.get("type") == "sine" for t in reference[key]) else "step"
             return quantity, shape
@@ -99,7 +102,10 @@ def step_metrics(result, quantity: str) -> dict:
     before = t < t_step_end
     final = ref[before][-1]
     info = m.step_info(
-        t[before], y[before], initial=y[0], final=final,
+        t[before],
+        y[before],
+        initial=y[0],
+        final=final,
         dead_zone_threshold=DEAD_ZONE_MM if quantity == "position" else None,
     )
     out = {k: v for k, v in info.items() if k != "peak"}

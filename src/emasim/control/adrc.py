@@ -50,6 +50,9 @@ class SpeedADRC(ControllerConfig):
     bandwidth_Hz: float = Field(default=50.0, gt=0, le=1e4, description="wc / (2 pi)")
     observer_bandwidth_Hz: float = Field(default=200.0, gt=0, le=1e4, description="wo / (2 pi)")
 
+    def tunable_ranges(self):
+        return {"bandwidth_Hz": (5.0, 300.0), "observer_bandwidth_Hz": (20.0, 2000.0)}
+
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         b = plant.torque_constant_Nm_per_A / plant.inertia_kgm2
         head = np.array([2.0 * math.pi * self.bandwidth_Hz, b, plant.max_current_A])

@@ -134,6 +134,14 @@ class PositionFuzzyPI(ControllerConfig):
     error_rate_range_mm_s: float = Field(default=50.0, gt=0, description="dE")
     velocity_feedforward: bool = True
 
+    def tunable_ranges(self):
+        return {
+            "bandwidth_Hz": (0.2, 20.0),
+            "kp_span": (0.05, 0.95),
+            "ki_span": (0.05, 0.95),
+            "error_range_mm": (0.05, 50.0),
+        }
+
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         alpha = 2.0 * math.pi * self.bandwidth_Hz
         k = plant.ratio_m_per_rad

@@ -77,6 +77,9 @@ class SpeedPI(ControllerConfig):
         kff = j_over_kt if self.acceleration_feedforward else 0.0
         return pack_pid(kp, ki, 0.0, ts, plant.max_current_A, kff, M_SPEED)
 
+    def tunable_ranges(self):
+        return {"bandwidth_Hz": (5.0, 300.0)}
+
 
 class PositionPID(ControllerConfig):
     """Position-loop PID: rod position error (m) -> motor speed command (rad/s).
@@ -119,3 +122,9 @@ class PositionPID(ControllerConfig):
             M_POSITION,
             commands="speed",
         )
+
+    def tunable_ranges(self):
+        ranges = {"bandwidth_Hz": (0.2, 20.0)}
+        if self.name == "pid":
+            ranges["kd"] = (1e-3, 1.0)
+        return ranges

@@ -96,6 +96,17 @@ class PositionSlidingMode(ControllerConfig):
     width: float = Field(default=0.5, gt=0, description="b, in units of the scaled inputs")
     adaptation_gain: float = Field(default=2e4, ge=0, description="gamma")
 
+    def tunable_ranges(self):
+        ranges = {
+            "surface_slope_per_s": (1.0, 200.0),
+            "reaching_rate_per_s": (1.0, 200.0),
+            "switching_gain_m_s2": (1e-3, 10.0),
+            "boundary_layer_m_s": (1e-4, 0.1),
+        }
+        if self.name == "rbf-smc":
+            ranges["adaptation_gain"] = (1e2, 1e6)
+        return ranges
+
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         network = self.name == "rbf-smc"
         eps = self.switching_gain_m_s2

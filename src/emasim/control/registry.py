@@ -57,5 +57,6 @@ DESCRIPTIONS: dict[tuple[str, str], str] = {
 
 CASCADES: dict[str, dict[str, dict]] = {
     "hybrid": {"speed": {"name": "st-gpio"}, "position": {"name": "rbf-smc"}},
-    "pid": {"speed": {"name": "pi"}, "position": {"name": "pid"}},
+    # the conventional cascade the paper compares against: plain PID, no feed-forward
+    "pid": {"speed": {"name": "pi"}, "position": {"name": "pid", "velocity_feedforward": False}},
 }

@@ -92,3 +92,10 @@ class ControllerConfig(BaseModel):
     @abstractmethod
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         """Gains and limits for this plant and sample period, packed for the engine."""
+
+    def tunable_ranges(self) -> dict[str, tuple[float, float]]:
+        """Fields a tuning study may set, each with its search range (sampled log-uniformly).
+
+        Only design knobs of the law this config selects; limits and structure stay fixed.
+        """
+        return {}

@@ -53,3 +53,10 @@ class SpeedSMC(ControllerConfig):
             ]
         )
         return Compiled(sliding_mode_speed, params, np.zeros(1))
+
+    def tunable_ranges(self):
+        return {
+            "switching_gain_rad_s2": (1e3, 3e4),
+            "reaching_rate_per_s": (10.0, 3000.0),
+            "boundary_layer_rad_s": (0.05, 20.0),
+        }

@@ -114,6 +114,14 @@ class SpeedSuperTwisting(ControllerConfig):
         default=10.0, ge=0, description="D of eq. 37: |d1| <= D |x1|^0.5, normalised units"
     )
 
+    def tunable_ranges(self):
+        ranges = {"disturbance_rate_bound_rad_s3": (1e4, 1e7)}
+        if self.name != "st":
+            ranges["boundary_layer_rad_s"] = (0.05, 0.95)
+        if self.name == "st-gpio":
+            ranges["observer_bandwidth_Hz"] = (20.0, 1000.0)
+        return ranges
+
     def gains(self, b: float) -> tuple[float, float]:
         """(beta, k) in A/(rad/s)^0.5 and A/s, from the overrides or from the bound L."""
         bound = self.disturbance_rate_bound_rad_s3

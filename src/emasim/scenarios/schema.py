@@ -191,6 +191,9 @@ class Scenario(Strict):
     reference: Reference
     load: Load = Load()
     compare: list[Variant] = []
+    tuning: dict[str, str | int | float] = Field(
+        default={}, description="how the gains were obtained (written by emasim tune)"
+    )
 
     @model_validator(mode="before")
     @classmethod

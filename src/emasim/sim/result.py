@@ -58,9 +58,9 @@ class Result:
         pq.write_table(self._to_arrow(), folder / "result.parquet")
         _write_records(folder, self.metrics, self.meta, self.scenario)
         if plot:
-            from ..analysis.plots import plot_result
+            from ..analysis.plots import plot_result, save_figure
 
-            _save_figure(plot_result(self), folder / "plot.png")
+            save_figure(plot_result(self), folder / "plot.png")
 
     def save(self, folder: str | Path, plot: bool = True) -> Path:
         """Write the run folder atomically (replacing an existing one) and return its path."""
@@ -100,9 +100,9 @@ class Comparison:
             result.write_files(sub, plot=False)
         _write_records(folder, self.metrics, self.meta, self.scenario)
         if plot:
-            from ..analysis.plots import plot_comparison
+            from ..analysis.plots import plot_comparison, save_figure
 
-            _save_figure(
+            save_figure(
                 plot_comparison(self.results, self.scenario.get("name")), folder / "comparison.png"
             )
 
@@ -131,13 +131,6 @@ def _write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> N
     (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     (folder / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
     (folder / "scenario.toml").write_text(tomli_w.dumps(scenario))
-
-
-def _save_figure(figure, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    figure.savefig(path, dpi=110)
-    plt.close(figure)
 
 
 def write_atomically(folder: str | Path, write) -> Path:

@@ -1,0 +1,396 @@
+"""Reproduce the paper: run every experiment, put our numbers beside the paper's, write a report.
+
+``emasim reproduce`` runs the comparisons of the shipped paper scenarios and writes, atomically:
+``report.md`` and ``report.html`` (figures, tables 2-7 and the simulation figures' numbers with
+the paper's values beside ours, the five headline figures of the abstract, the assumptions and
+the tuning record), ``tables.json`` (the same numbers for machines, with a ``headline`` object),
+``figures/*.png`` and ``runs/<experiment>/`` (every run, with its scenario and metadata).
+The paper's numbers are in ``paper_results.toml`` beside this module (transcribed from the text).
+"""
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from .. import __version__
+from .report import BENCH_SETTLING_BAND, BENCH_STEADY_S, DEAD_ZONE_MM, STEADY_FRACTION
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """A shipped scenario that reproduces part of the paper."""
+
+    scenario: str
+    paper_key: str  # section of paper_results.toml
+    figures: str  # where in the paper
+
+
+EXPERIMENTS = (
+    Experiment("speed-step", "speed_step", "Fig. 5"),
+    Experiment("speed-sine", "speed_sine", "Fig. 6"),
+    Experiment("position-step", "position_step", "Fig. 8"),
+    Experiment("bench-step", "bench_step", "Figs. 16-19, Tables 2-5"),
+    Experiment("bench-sine", "bench_sine", "Figs. 20-23, Tables 6-7"),
+)
+
+# paper table key -> (our metric key, unit); lower magnitude is better for every one of them
+BENCH_STEP_ROWS = {
+    "settling_s": ("settling_time_s", "s"),
+    "rise_s": ("rise_time_s", "s"),
+    "chatter_amplitude_deg": ("chatter_amplitude_deg", "deg"),
+    "steady_error_mean_deg": ("steady_error_mean_deg", "deg"),
+    "steady_error_std_deg": ("steady_error_std_deg", "deg"),
+    "steady_error_rms_deg": ("steady_error_rms_deg", "deg"),
+    "peak_velocity_deg_s": ("peak_velocity_deg_s", "deg/s"),
+    "velocity_fluctuation_deg_s": ("velocity_fluctuation_deg_s", "deg/s"),
+    "velocity_error_mean_deg_s": ("velocity_error_mean_deg_s", "deg/s"),
+    "velocity_error_std_deg_s": ("velocity_error_std_deg_s", "deg/s"),
+    "velocity_error_rms_deg_s": ("velocity_error_rms_deg_s", "deg/s"),
+}
+BENCH_SINE_ROWS = {
+    "tracking_error_deg": ("tracking_error_deg", "deg"),
+    "initial_reverse_motion": ("initial_reverse_motion", "yes/no"),
+    "peak_velocity_deg_s": ("peak_velocity_deg_s", "deg/s"),
+    "velocity_fluctuation_deg_s": ("velocity_fluctuation_deg_s", "deg/s"),
+}
+HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
+    "step_steady_error_reduction": (
+        "bench_step",
+        "steady_error_mean_deg",
+        f"|mean| of rudder angle error from {BENCH_STEADY_S:g} s to the end of the 4.72 deg step",
+    ),
+    "step_vibration_amplitude_reduction": (
+        "bench_step",
+        "chatter_amplitude_deg",
+        f"half peak-to-peak of the rudder angle from {BENCH_STEADY_S:g} s to the end of the step",
+    ),
+    "step_speed_fluctuation_reduction": (
+        "bench_step",
+        "velocity_fluctuation_deg_s",
+        f"half peak-to-peak of the rudder rate about its linear trend from {BENCH_STEADY_S:g} s",
+    ),
+    "sine_displacement_lag_reduction": (
+        "bench_sine",
+        "tracking_error_deg",
+        f"max |rudder angle error| from {BENCH_STEADY_S:g} s on (the paper's 'lag angle')",
+    ),
+    "sine_speed_fluctuation_reduction": (
+        "bench_sine",
+        "velocity_fluctuation_deg_s",
+        f"half peak-to-peak of the rudder rate about its fitted sine from {BENCH_STEADY_S:g} s",
+    ),
+}
+PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
+
+
+def paper_results() -> dict:
+    """The paper's numbers (paper_results.toml)."""
+    return tomllib.loads(resources.files(__package__).joinpath("paper_results.toml").read_text())
+
+
+def reduction(before: float, after: float) -> float | None:
+    """Relative reduction of a magnitude, (|before| - |after|) / |before|; None if undefined."""
+    if before is None or after is None or not math.isfinite(before) or before == 0:
+        return None
+    return (abs(before) - abs(after)) / abs(before)
+
+
+def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
+    """Rows of a bench table: paper PID/hybrid, ours PID/hybrid, and both reductions."""
+    table = []
+    for paper_key, (our_key, unit) in rows.items():
+        p_pid, p_hyb = paper[PID_LABEL].get(paper_key), paper[HYBRID_LABEL].get(paper_key)
+        o_pid, o_hyb = ours[PID_LABEL].get(our_key), ours[HYBRID_LABEL].get(our_key)
+        numeric = all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in (p_pid, p_hyb)
+        )
+        table.append(
+            {
+                "metric": our_key,
+                "unit": unit,
+                "paper_pid": p_pid,
+                "paper_hybrid": p_hyb,
+                "ours_pid": o_pid,
+                "ours_hybrid": o_hyb,
+                "paper_reduction": reduction(p_pid, p_hyb) if numeric else None,
+                "ours_reduction": reduction(o_pid, o_hyb),
+            }
+        )
+    return table
+
+
+def headline(paper: dict, tables: dict) -> dict:
+    """The abstract's five figures: paper values from its tables, ours from the same metric."""
+    out = {}
+    for name, (experiment, row_key, definition) in HEADLINE.items():
+        rows = BENCH_STEP_ROWS if experiment == "bench_step" else BENCH_SINE_ROWS
+        our_key, unit = rows[row_key]
+        (row,) = [r for r in tables[experiment] if r["metric"] == our_key]
+        out[name] = {
+            "paper_pid": row["paper_pid"],
+            "paper_hybrid": row["paper_hybrid"],
+            "ours_pid": row["ours_pid"],
+            "ours_hybrid": row["ours_hybrid"],
+            "unit": unit,
+            "definition": definition,
+            "paper_abstract_reduction": paper["headline"][name],
+            "paper_reduction": row["paper_reduction"],
+            "ours_reduction": row["ours_reduction"],
+            "hybrid_better": abs(row["ours_hybrid"]) < abs(row["ours_pid"]),
+        }
+    return out
+
+
+def simulation_tables(paper: dict, metrics: dict) -> dict:
+    """Numbers of the simulation figures: Fig. 8 (position step) and Fig. 6 (speed sine)."""
+    tables = {}
+    if "position-step" in metrics:
+        fig8 = paper["position_step"]
+        tables["position_step"] = [
+            {
+                "controller": label,
+                "paper_dead_zone_s": fig8["dead_zone_s"].get(label),
+                "ours_dead_zone_s": m.get("dead_zone_time_s"),
+                "paper_settling_s": fig8["settling_s"].get(label),
+                "ours_settling_s": m.get("settling_time_s"),
+                "paper_steady_error_mm": fig8["steady_error_mm"].get(label),
+                "ours_steady_error_rms_mm": m.get("steady_error_rms_mm"),
+            }
+            for label, m in metrics["position-step"].items()
+        ]
+    if "speed-sine" in metrics:
+        recovery = paper["speed_sine"]["recovery_s"]
+        tables["speed_sine"] = [
+            {
+                "controller": label,
+                "paper_recovery_s": recovery.get(label),
+                "ours_recovery_s": m.get("load_recovery_time_s"),
+                "ours_load_dip_rpm": m.get("load_dip_rpm"),
+                "ours_max_error_rpm": m.get("max_error_rpm"),
+            }
+            for label, m in metrics["speed-sine"].items()
+        ]
+    if "speed-step" in metrics:
+        tables["speed_step"] = [
+            {"controller": label, **m} for label, m in metrics["speed-step"].items()
+        ]
+    return tables
+
+
+def build_tables(metrics: dict) -> dict:
+    """Every table of the report from {experiment: {label: metrics}}."""
+    paper = paper_results()
+    tables = simulation_tables(paper, metrics)
+    if "bench-step" in metrics:
+        tables["bench_step"] = bench_table(
+            paper["bench_step"], metrics["bench-step"], BENCH_STEP_ROWS
+        )
+    if "bench-sine" in metrics:
+        tables["bench_sine"] = bench_table(
+            paper["bench_sine"], metrics["bench-sine"], BENCH_SINE_ROWS
+        )
+    if "bench_step" in tables and "bench_sine" in tables:
+        tables["headline"] = headline(paper, tables)
+    return tables
+
+
+def definitions() -> list[str]:
+    """The windows and bands behind the numbers, as report lines."""
+    return [
+        f"Bench steady-state statistics: from {BENCH_STEADY_S:g} s to the end of the run.",
+        f"Bench settling time: into a {100 * BENCH_SETTLING_BAND:g} % band of the 4.72 deg "
+        "step (the paper's PID oscillates by about 4 % of it).",
+        "Simulation step metrics: 2 % settling band, on the interval before the load step; "
+        f"steady error over the last {100 * STEADY_FRACTION:g} % of that interval; dead-zone "
+        f"time until the rod has moved {DEAD_ZONE_MM * 1e3:g} um.",
+        "Reductions are (|PID| - |hybrid|) / |PID| of the same metric.",
+        "Rudder rate: the rod velocity through the lumped rudder arm (true value; the bench "
+        "computed it from its encoder).",
+    ]
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, str):
+        return value
+    if not math.isfinite(value):
+        return str(value)
+    return f"{value:.3g}"
+
+
+def _pct(value) -> str:
+    return "-" if value is None else f"{100 * value:.0f} %"
+
+
+def markdown_table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += [
+        "| " + " | ".join(_fmt(c) if not isinstance(c, str) else c for c in row) + " |"
+        for row in rows
+    ]
+    return "\n".join(lines)
+
+
+def _bench_markdown(table: list[dict]) -> str:
+    header = [
+        "metric",
+        "unit",
+        "paper PID",
+        "paper hybrid",
+        "paper reduction",
+        "ours PID",
+        "ours hybrid",
+        "ours reduction",
+    ]
+    rows = [
+        [
+            r["metric"],
+            r["unit"],
+            _fmt(r["paper_pid"]),
+            _fmt(r["paper_hybrid"]),
+            _pct(r["paper_reduction"]),
+            _fmt(r["ours_pid"]),
+            _fmt(r["ours_hybrid"]),
+            _pct(r["ours_reduction"]),
+        ]
+        for r in table
+    ]
+    return markdown_table(header, rows)
+
+
+def _dict_rows_markdown(rows: list[dict]) -> str:
+    header = list(rows[0])
+    return markdown_table(header, [[_fmt(r[k]) for k in header] for r in rows])
+
+
+def _headline_markdown(items: dict) -> str:
+    header = [
+        "figure",
+        "unit",
+        "paper PID",
+        "paper hybrid",
+        "paper reduction (abstract)",
+        "ours PID",
+        "ours hybrid",
+        "ours reduction",
+        "hybrid better",
+    ]
+    rows = [
+        [
+            name.removesuffix("_reduction").replace("_", " "),
+            h["unit"],
+            _fmt(h["paper_pid"]),
+            _fmt(h["paper_hybrid"]),
+            f"{_pct(h['paper_reduction'])} ({_pct(h['paper_abstract_reduction'])})",
+            _fmt(h["ours_pid"]),
+            _fmt(h["ours_hybrid"]),
+            _pct(h["ours_reduction"]),
+            _fmt(h["hybrid_better"]),
+        ]
+        for name, h in items.items()
+    ]
+    return markdown_table(header, rows)
+
+
+def write_report(folder: Path, tables: dict, scenarios: dict, figures: dict, notes: str) -> None:
+    """report.md, report.html and tables.json into ``folder``."""
+    import markdown
+
+    parts = [
+        "# emasim reproduction of Ding & Zhou (2025)",
+        f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "
+        "PID = position PID over speed PI (no feed-forward, the paper's conventional "
+        "baseline). Both run over the same current loop on the same virtual bench.",
+    ]
+    if "headline" in tables:
+        parts += ["## The abstract's five figures", _headline_markdown(tables["headline"])]
+    for exp in EXPERIMENTS:
+        if exp.scenario not in scenarios:
+            continue
+        sc = scenarios[exp.scenario]
+        parts.append(f"## {exp.scenario} ({exp.figures})")
+        parts.append(sc.get("description", ""))
+        for caption, path in figures.get(exp.scenario, []):
+            parts.append(f"![{caption}]({path})")
+        key = exp.paper_key
+        if key in ("bench_step", "bench_sine"):
+            parts.append(_bench_markdown(tables[key]))
+        elif key in tables:
+            parts.append(_dict_rows_markdown(tables[key]))
+        tuning = sc.get("tuning")
+        parts.append(
+            "Gains: "
+            + (
+                f"tuned ({tuning['method']}; {tuning['trials_per_controller_set']} "
+                f"trials per controller set; cost {tuning['cost']})."
+                if tuning
+                else "the scenario's defaults (not tuned)."
+            )
+        )
+    parts += ["## Definitions", "\n".join(f"- {line}" for line in definitions())]
+    parts.append(notes)
+    text = "\n\n".join(parts) + "\n"
+    (folder / "report.md").write_text(text)
+    body = markdown.markdown(text, extensions=["tables"])
+    style = (
+        "body{font-family:sans-serif;max-width:70em;margin:auto}table{border-collapse:"
+        "collapse}td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
+        "img{max-width:100%}"
+    )
+    (folder / "report.html").write_text(
+        f"<!doctype html><html><head><meta charset='utf-8'><title>emasim reproduction</title>"
+        f"<style>{style}</style></head><body>{body}</body></html>\n"
+    )
+    (folder / "tables.json").write_text(json.dumps(tables, indent=2, default=str) + "\n")
+
+
+NOTES_FILE = "reproduction_notes.md"
+
+
+def notes() -> str:
+    """The assumptions and the discussion of where we differ (reproduction_notes.md)."""
+    return resources.files(__package__).joinpath(NOTES_FILE).read_text()
+
+
+def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> Path:
+    """Run the paper's experiments (or ``only`` those) and write the report folder."""
+    from ..scenarios.loader import load_scenario
+    from ..sim.result import write_atomically
+    from ..sim.runner import run_comparison
+    from .plots import plot_bench, plot_comparison, save_figure
+
+    chosen = [e for e in EXPERIMENTS if not only or e.scenario in only]
+    comparisons = {}
+    for i, exp in enumerate(chosen):
+        comparisons[exp.scenario] = run_comparison(load_scenario(exp.scenario))
+        if progress is not None:
+            progress((i + 1) / len(chosen))
+    metrics = {name: c.metrics for name, c in comparisons.items()}
+    tables = build_tables(metrics)
+
+    def write(folder: Path) -> None:
+        (folder / "figures").mkdir()
+        (folder / "runs").mkdir()
+        figures = {}
+        for name, comparison in comparisons.items():
+            run_folder = folder / "runs" / name
+            run_folder.mkdir()
+            comparison.write_files(run_folder, plot=False)
+            if name.startswith("bench"):
+                fig = plot_bench(comparison.results, name)
+            else:
+                fig = plot_comparison(comparison.results, name)
+            path = f"figures/{name}.png"
+            save_figure(fig, folder / path)
+            figures[name] = [(name, path)]
+        write_report(
+            folder, tables, {n: c.scenario for n, c in comparisons.items()}, figures, notes()
+        )
+
+    return write_atomically(out, write)
