@@ -59,8 +59,10 @@ BENCH_SINE_ROWS = {
 HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
     "step_steady_error_reduction": (
         "bench_step",
-        "steady_error_mean_deg",
-        f"|mean| of rudder angle error from {BENCH_STEADY_S:g} s to the end of the 4.72 deg step",
+        "steady_error_rms_deg",
+        f"RMS of the rudder angle error from {BENCH_STEADY_S:g} s to the end of the 4.72 deg "
+        "step (the RMS, not the mean: the mean of a limit cycle about the target is near zero "
+        "and depends on where the window cuts the cycle)",
     ),
     "step_vibration_amplitude_reduction": (
         "bench_step",

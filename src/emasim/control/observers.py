@@ -22,7 +22,8 @@ sampled with u held gives x[k+1] = Phi x[k] + Gamma u[k] exactly, and the observ
 
 has its error poles, the eigenvalues of Phi - L C, all at exp(-wo Ts): the images of the
 continuous design's -wo (Ackermann's formula). A constant (ESO) or ramp (GPIO) disturbance is
-then estimated with no steady error, for any wo Ts.
+then estimated with no steady error, for any wo Ts; under a ramp the ESO's lag is the
+continuous 2a/wo made larger by a relative wo Ts / 4 + O((wo Ts)^2).
 """
 
 import math
@@ -58,11 +59,11 @@ def discrete_observer(order: int, bandwidth_rad_s: float, b: float, ts: float) -
     c = np.zeros(order)
     c[0] = 1.0
     observability = np.array([c @ np.linalg.matrix_power(phi, i) for i in range(order)])
-    pole = math.exp(-bandwidth_rad_s * ts)
-    characteristic = np.poly(np.full(order, pole))  # coefficients of (z - pole)^order
-    p_of_phi = sum(
-        coef * np.linalg.matrix_power(phi, order - i) for i, coef in enumerate(characteristic)
-    )
+    # P(Phi) = (Phi - p I)^order with p = exp(-wo Ts); written as (Phi - I + q I), q = 1 - p
+    # from expm1, so that small wo Ts loses no digits to cancellation
+    q = -math.expm1(-bandwidth_rad_s * ts)
+    nilpotent = phi - np.eye(order)  # exact: Phi has ones on its diagonal
+    p_of_phi = np.linalg.matrix_power(nilpotent + q * np.eye(order), order)
     unit = np.zeros(order)
     unit[-1] = 1.0
     gain = p_of_phi @ np.linalg.solve(observability, unit)

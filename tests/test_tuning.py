@@ -1,0 +1,95 @@
+"""Fair tuning: one cost, one search, one budget for every controller set; resumable."""
+
+import tomllib
+
+import numpy as np
+import optuna
+import pytest
+from typer.testing import CliRunner
+
+from emasim.cli import app
+from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
+from emasim.sim.engine import simulate
+from emasim.tuning import CHATTER_WEIGHT, search_space, tune_scenario, tune_variant, tuning_cost
+
+SHORT = ["duration_s=0.05", "load.motor_torque_Nm=[]"]
+
+
+def test_cost_is_tracking_error_plus_a_price_on_chattering():
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    result = simulate(scenario.setup())
+    t = result.t
+    error = result["speed_ref_rad_s"] - result["motor_speed_rad_s"]
+    tracking = np.trapezoid(np.abs(error), t) / ((t[-1] - t[0]) * 1000 * np.pi / 30)
+    iq = result.data[:, result.columns.index("iq_ref_A")]
+    iq[:] = 5.0  # a steady command: no chattering price
+    assert tuning_cost(result, 58.0) == pytest.approx(tracking, rel=1e-12)
+    iq += np.where(np.arange(len(iq)) % 2 == 0, 1.0, -1.0)  # +-1 A every sample
+    jumps = 2.0 * (len(iq) - 1) / (t[-1] - t[0])
+    assert tuning_cost(result, 58.0) == pytest.approx(
+        tracking + CHATTER_WEIGHT * jumps / 58.0, rel=1e-12
+    )
+
+
+def test_search_space_covers_both_loops_of_a_cascade():
+    scenario = load_scenario("position-step", controllers=["hybrid"])
+    space = search_space(scenario.controllers)
+    assert "position.adaptation_gain" in space and "speed.observer_bandwidth_Hz" in space
+    assert all(lo < hi for lo, hi in space.values())
+
+
+def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_path):
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    tuned, best, study = tune_variant(scenario, "PI", scenario.controllers, 4, storage, seed=1)
+    assert study.trials[0].params == {"speed.bandwidth_Hz": 50.0}  # the gains given
+    assert best <= study.trials[0].value
+    assert tuned.speed.bandwidth_Hz == pytest.approx(study.best_params["speed.bandwidth_Hz"])
+    _, _, again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1)
+    complete = [t for t in again.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(complete) == 6  # resumed: two more, not six more
+
+
+def test_every_controller_set_gets_the_same_budget_and_the_file_records_it(tmp_path):
+    raw, _ = read_scenario_file("speed-step")
+    raw["duration_s"] = 0.05
+    raw["load"] = {}
+    scenario = validate_scenario(raw)
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    tuned_raw, costs = tune_scenario(raw, scenario, 3, storage)
+    assert list(costs) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
+    for label in costs:
+        study = optuna.load_study(study_name=f"speed-step:{label}", storage=storage)
+        assert len(study.trials) == 3
+        assert costs[label][1] <= costs[label][0]
+    tuned = validate_scenario(tuned_raw)
+    assert tuned.tuning["trials_per_controller_set"] == 3
+    assert [v.controllers.speed.name for v in tuned.compare] == [
+        "pi",
+        "smc",
+        "st-improved",
+        "st-gpio",
+    ]
+
+
+def test_tune_command_writes_a_valid_scenario(tmp_path):
+    save = tmp_path / "tuned.toml"
+    result = CliRunner().invoke(
+        app,
+        [
+            "tune",
+            "speed-step",
+            "-c",
+            "speed=adrc",
+            *sum([["--set", s] for s in SHORT], []),
+            "--trials",
+            "2",
+            "--storage",
+            f"sqlite:///{tmp_path / 's.db'}",
+            "--save",
+            str(save),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    tuned = validate_scenario(tomllib.loads(save.read_text()))
+    assert tuned.controllers.speed.name == "adrc" and tuned.tuning
