@@ -7,6 +7,7 @@ faster; 0.05 means 20x faster than real time), best of three runs in this proces
 compiled code loaded. Start-up: a fresh ``emasim run speed-step`` process end to end with a warm
 numba cache, and with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
 Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
+Reproduce: a fresh ``emasim reproduce`` process, every paper experiment and the report.
 """
 
 import argparse
@@ -74,6 +75,15 @@ def reference_speedup(duration_s: float = 0.05) -> dict:
     return {"engine_s": engine, "reference_s": reference, "speedup": reference / engine}
 
 
+def reproduce_seconds() -> float:
+    """Wall time of a fresh ``emasim reproduce`` (warm numba cache), every experiment."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "emasim", "reproduce", "--out", f"{out}/report"]
+        start = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        return time.perf_counter() - start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", help="also write the figures to this file")
@@ -88,6 +98,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as cold:
         results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
     results["reference"] = reference_speedup()
+    results["reproduce_s"] = reproduce_seconds()
     for name, rtf in results["real_time_factor"].items():
         print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
     for name, rtf in results["controller_real_time_factor"].items():
@@ -102,6 +113,9 @@ def main() -> None:
     print(
         f"engine vs scipy Radau reference (0.05 s of speed-step): {ref['engine_s']:.4f} s vs "
         f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
+    )
+    print(
+        f"fresh `emasim reproduce` (all experiments, report): {results['reproduce_s']:.1f} s"
     )
     if args.json:
         with open(args.json, "w") as f:
