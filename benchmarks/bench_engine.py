@@ -114,9 +114,7 @@ def main() -> None:
         f"engine vs scipy Radau reference (0.05 s of speed-step): {ref['engine_s']:.4f} s vs "
         f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
     )
-    print(
-        f"fresh `emasim reproduce` (all experiments, report): {results['reproduce_s']:.1f} s"
-    )
+    print(f"fresh `emasim reproduce` (all experiments, report): {results['reproduce_s']:.1f} s")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=2)

@@ -75,6 +75,10 @@ def plot_comparison(results: dict, title: str | None = None):
         axes[2].plot(result.t, result["iq_A"], lw=0.8, label=name)
     axes[0].set_ylabel(label)
     axes[1].set_ylabel(f"error, {label}")
+    # symmetric log: the approach and the small steady-state error both stay visible
+    axes[1].set_yscale(
+        "symlog", linthresh=max(1e-4 * float(np.nanmax(np.abs(scale * reference))), 1e-12)
+    )
     axes[2].set_ylabel("iq (A)")
     axes[2].set_xlabel("time (s)")
     for ax in axes:
