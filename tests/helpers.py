@@ -18,27 +18,11 @@ from emasim.plant import actuator as A
 from emasim.plant.parameters import PlantParams
 from emasim.plant.presets import sea805
 from emasim.signals import ZERO, Step, encode
-from emasim.sim.setup import Setup
+from emasim.sim.setup import Setup, plant_facts
+
+facts_of = plant_facts  # what a controller design may know of a plant
 
 RPM = math.pi / 30.0  # rad/s per rpm
-
-
-def facts_of(plant: PlantParams) -> PlantFacts:
-    """What a controller design may know of ``plant`` (SI units), assembled by hand."""
-    m = plant.motor
-    return PlantFacts(
-        inertia_kgm2=plant.total_inertia_kgm2,
-        torque_constant_Nm_per_A=plant.torque_constant_Nm_per_A,
-        ratio_m_per_rad=plant.ratio_m_per_rad,
-        max_current_A=m.max_current_A,
-        max_speed_rad_s=m.max_speed_rpm * RPM,
-        resistance_ohm=m.resistance_ohm,
-        inductance_d_H=m.inductance_d_H,
-        inductance_q_H=m.inductance_q_H,
-        flux_linkage_Wb=m.flux_linkage_Wb,
-        pole_pairs=m.pole_pairs,
-        dc_bus_V=m.dc_bus_V,
-    )
 
 
 def frictionless_sea805(**packed_overrides) -> tuple[PlantParams, np.ndarray]:

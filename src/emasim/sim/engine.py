@@ -18,7 +18,6 @@ import numba as nb
 import numpy as np
 from numba import types
 
-from ..control.current import N_STATE as N_CURRENT_STATE
 from ..control.current import current_control
 from ..control.slot import CONTROLLER_TYPE
 from ..errors import SimulationDiverged
@@ -316,15 +315,8 @@ def simulate(setup, progress=None):
     time and the state's name when the run blows up.
     """
     n = setup.n_ticks
-    trace = np.full(((n + setup.record_every - 1) // setup.record_every, N_COLUMNS), np.nan)
-    x = setup.x0.astype(np.float64).copy()
-    position = setup.position if setup.position is not None else setup.speed
-    pos_state = position.state.copy()
-    speed_state = setup.speed.state.copy()
-    cur_state = np.zeros(N_CURRENT_STATE)
-    gap = setup.initial_gap_state()
+    run = setup.start()
     status = np.zeros(3, dtype=np.int64)
-    loop = setup.loop_structure
     chunk = max(1, n // 50)
     start = time.perf_counter()
     for k0 in range(0, n, chunk):
@@ -333,26 +325,26 @@ def simulate(setup, progress=None):
             min(n, k0 + chunk),
             setup.substeps,
             setup.sample_period_s,
-            x,
+            run.x,
             setup.plant,
             setup.motor_load,
             setup.rod_load,
             setup.reference,
-            loop,
+            run.loop,
             setup.sensors,
-            gap,
+            run.gap,
             setup.seed,
-            position.function,
-            position.params,
-            pos_state,
+            run.position.function,
+            run.position.params,
+            run.position_state,
             setup.speed.function,
             setup.speed.params,
-            speed_state,
+            run.speed_state,
             setup.current_params,
-            cur_state,
+            run.current_state,
             setup.limits,
             setup.record_every,
-            trace,
+            run.trace,
             status,
         )
         if status[0] != OK:
@@ -360,4 +352,4 @@ def simulate(setup, progress=None):
         if progress is not None:
             progress(min(n, k0 + chunk) / n)
     wall = time.perf_counter() - start
-    return Result(TRACE_COLUMNS, trace, meta={"simulation_wall_s": wall})
+    return Result(TRACE_COLUMNS, run.trace, meta={"simulation_wall_s": wall})

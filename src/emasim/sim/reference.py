@@ -13,12 +13,11 @@ import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..control.current import N_STATE as N_CURRENT_STATE
 from ..interface import N_MEAS, N_OUT, N_REF
 from ..plant import actuator as A
 from ..plant.sensors import seed_noise
 from ..signals import signal_value
-from .engine import N_COLUMNS, TRACE_COLUMNS, control_tick, record
+from .engine import TRACE_COLUMNS, control_tick, record
 from .result import Result
 
 # absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s
@@ -37,37 +36,30 @@ def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, t_end):
 
 def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Result:
     """Run ``setup`` with ``solve_ivp(method, rtol)`` between ticks (see module docstring)."""
-    n = setup.n_ticks
     ts = setup.sample_period_s
-    trace = np.full(((n + setup.record_every - 1) // setup.record_every, N_COLUMNS), np.nan)
-    x = setup.x0.astype(np.float64).copy()
-    position = setup.position if setup.position is not None else setup.speed
-    pos_state = position.state.copy()
-    speed_state = setup.speed.state.copy()
-    cur_state = np.zeros(N_CURRENT_STATE)
-    gap = setup.initial_gap_state()
-    loop = setup.loop_structure
+    run = setup.start()
+    x = run.x
     meas, ref, out = np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT)
     seed_noise(setup.seed)
     start = time.perf_counter()
-    for k in range(n):
+    for k in range(setup.n_ticks):
         t = k * ts
         u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
             t,
             x,
             setup.plant,
             setup.sensors,
-            gap,
-            loop,
+            run.gap,
+            run.loop,
             setup.reference,
-            position.function,
-            position.params,
-            pos_state,
+            run.position.function,
+            run.position.params,
+            run.position_state,
             setup.speed.function,
             setup.speed.params,
-            speed_state,
+            run.speed_state,
             setup.current_params,
-            cur_state,
+            run.current_state,
             ts,
             meas,
             ref,
@@ -75,7 +67,7 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
         )
         if k % setup.record_every == 0:
             record(
-                trace[k // setup.record_every],
+                run.trace[k // setup.record_every],
                 t,
                 x,
                 setup.plant,
@@ -101,4 +93,4 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
             raise RuntimeError(f"reference solver failed at t = {t:g} s: {sol.message}")
         x = sol.y[:, -1].copy()
     wall = time.perf_counter() - start
-    return Result(TRACE_COLUMNS, trace, meta={"simulation_wall_s": wall, "solver": method})
+    return Result(TRACE_COLUMNS, run.trace, meta={"simulation_wall_s": wall, "solver": method})

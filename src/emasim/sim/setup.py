@@ -5,12 +5,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..control.current import N_STATE as N_CURRENT_STATE
 from ..control.slot import Compiled, PlantFacts
 from ..interface import N_MEAS
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
-from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
+from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
 
 
 @dataclass
@@ -67,11 +68,44 @@ class Setup:
         """A copy with some fields replaced."""
         return replace(self, **changes)
 
+    def start(self) -> "RunState":
+        """Fresh copies of everything a run changes, and an empty trace."""
+        n = self.n_ticks
+        position = self.position if self.position is not None else self.speed
+        return RunState(
+            trace=np.full(((n + self.record_every - 1) // self.record_every, N_COLUMNS), np.nan),
+            x=self.x0.astype(np.float64).copy(),
+            position=position,
+            position_state=position.state.copy(),
+            speed_state=self.speed.state.copy(),
+            current_state=np.zeros(N_CURRENT_STATE),
+            gap=self.initial_gap_state(),
+            loop=self.loop_structure,
+        )
+
     def initial_gap_state(self) -> np.ndarray:
         """Start of every sensor's play operator: the channel's true initial value."""
         values = np.zeros(N_MEAS)
         true_values(self.x0, self.plant, values)
         return values
+
+
+@dataclass
+class RunState:
+    """What one run of a Setup changes: plant state, controller states, trace.
+
+    ``position`` is the position controller, or the speed controller standing in for it (the
+    compiled loop always takes one; it calls it only when a position loop is closed).
+    """
+
+    trace: np.ndarray
+    x: np.ndarray
+    position: Compiled
+    position_state: np.ndarray
+    speed_state: np.ndarray
+    current_state: np.ndarray
+    gap: np.ndarray
+    loop: int
 
 
 def plant_facts(plant) -> PlantFacts:
