@@ -63,9 +63,10 @@ def plot_comparison(results: dict, title: str | None = None):
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
     first = next(iter(results.values()))
     label, scale, column, ref_column = _output(first)
-    if ref_column is None:  # rudder: the reference goes through the arm of the rudder stage
-        arm = first.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
-        reference = first["position_ref_m"] / arm
+    if ref_column is None:  # rudder: the scenario's command, in rad
+        from .report import rudder_traces
+
+        reference = rudder_traces(first)[1] / scale
     else:
         reference = first[ref_column]
     axes[0].plot(first.t, scale * reference, "k--", lw=1, label="reference")

@@ -24,7 +24,9 @@ angle, as a step or a sine. Every window and band is stated here, once:
 import math
 
 import numpy as np
+from pydantic import TypeAdapter
 
+from ..signals import Term, encode, signal_value
 from . import metrics as m
 
 RPM_PER_RAD_S = 30.0 / math.pi
@@ -60,13 +62,31 @@ def reference_kind(scenario: dict) -> tuple[str, str]:
 
 
 def rudder_traces(result) -> tuple[np.ndarray, ...]:
-    """Rudder angle, its reference (deg), rudder rate and reference rate (deg/s)."""
-    arm = result.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
+    """Rudder angle, its reference (deg), rudder rate and reference rate (deg/s).
+
+    The reference is the scenario's rudder command itself; the rate is the rudder shaft's
+    (with the linkage) or the rod velocity through the lumped arm.
+    """
     t = result.t
+    command = encode(
+        [
+            TypeAdapter(Term).validate_python(term)
+            for term in result.scenario["reference"]["rudder_deg"]
+        ]
+    )
+    reference = np.array([signal_value(command, float(x)) for x in t])
     angle = DEG_PER_RAD * result["rudder_angle_rad"]
-    reference = DEG_PER_RAD * result["position_ref_m"] / arm
-    rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / arm
+    if result.scenario["plant"].get("linkage"):
+        rate = DEG_PER_RAD * result["linkage_rudder_rate_rad_s"]
+    else:
+        arm = result.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
+        rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / arm
     return angle, reference, rate, np.gradient(reference, t)
+
+
+def steady_window(t: np.ndarray) -> tuple[float, float]:
+    """Bench steady-state window: from BENCH_STEADY_S (or half the run, if shorter) to the end."""
+    return (min(BENCH_STEADY_S, 0.5 * t[-1]), t[-1])
 
 
 def run_metrics(result) -> dict:
@@ -156,7 +176,7 @@ def bench_step_metrics(result) -> dict:
     t = result.t
     angle, reference, rate, reference_rate = rudder_traces(result)
     final = reference[-1]
-    steady = (BENCH_STEADY_S, t[-1])
+    steady = steady_window(t)
     error = m.error_stats(t, reference - angle, steady)
     rate_error = m.error_stats(t, reference_rate - rate, steady)
     chat = m.chattering(t, angle, steady)
@@ -184,7 +204,7 @@ def bench_sine_metrics(result) -> dict:
     t = result.t
     angle, reference, rate, reference_rate = rudder_traces(result)
     frequency, _ = _sine_frequency(result.scenario, "rudder_deg")
-    steady = (BENCH_STEADY_S, t[-1])
+    steady = steady_window(t)
     track = m.sine_tracking(t, angle, reference, frequency, steady)
     start = (t[0], t[0] + 1.0)
     first_second = m.window_mask(t, start)

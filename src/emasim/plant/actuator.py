@@ -9,15 +9,23 @@ where the nut position is K theta_m (K from :mod:`emasim.plant.drivetrain`):
     M_L dv_L/dt = Fb - F_L(t) - c_L v_L                                           (N)
     dz/dt       = LuGre bristle rate on wm                                        (rad/s)
 
-plus the dq current equations of :mod:`emasim.plant.motor`. TL(t) is a load torque applied on
+plus the dq current equations of :mod:`emasim.plant.motor`. With the clearance-joint linkage
+(emasim.plant.linkage) in place of the lumped rudder, M_L is the rod alone, the rod feels the
+linkage's axial push and the centripetal term of the swinging actuator,
+
+    m_rod dv_L/dt = Fb + F_axial - F_L(t) - c_L v_L + m_rod r phi'^2,
+
+and the linkage's 16 states follow the drive's rod. TL(t) is a load torque applied on
 the motor shaft (the paper's TL) and F_L(t) an external force on the rod (from the rudder);
 both are evaluated by the caller.
 States and parameters are flat float64 arrays indexed by the constants below.
 """
 
 import numba as nb
+import numpy as np
 
 from . import friction as fr
+from . import linkage as L
 from .backlash import dead_zone_force
 from .drivetrain import reflected_torque
 from .motor import current_rates, electromagnetic_torque
@@ -30,7 +38,8 @@ X_WM = 3  # motor mechanical speed, rad/s
 X_Z = 4  # LuGre bristle deflection, rad
 X_XL = 5  # rod (load-side) position, m
 X_VL = 6  # rod velocity, m/s
-N_STATE = 7
+X_LINK = 7  # first of the linkage's states (zero and idle with the lumped rudder)
+N_STATE = X_LINK + L.N_LINK
 STATE_NAMES = (
     "id_A",
     "iq_A",
@@ -39,6 +48,7 @@ STATE_NAMES = (
     "bristle_state_rad",
     "actuator_position_m",
     "actuator_velocity_m_s",
+    *L.LINK_STATE_NAMES,
 )
 
 # --- parameter vector (SI), filled by PlantParams.pack ------------------------------------
@@ -66,7 +76,12 @@ P_ML = 20  # load-side mass, kg
 P_CL = 21  # load-side viscous damping, N s/m
 P_ARM = 22  # rudder arm, m (rudder angle = x_L / arm)
 P_UDC = 23  # DC-link voltage, V
-N_PARAMS = 24
+P_LOAD_MODEL = 24  # LOAD_LUMPED or LOAD_LINKAGE
+P_LINK = 25  # first of the linkage's parameters (emasim.plant.linkage layout)
+N_PARAMS = P_LINK + L.N_LINK_PARAMS
+
+LOAD_LUMPED = 0
+LOAD_LINKAGE = 1
 
 FRICTION_NONE = 0
 FRICTION_COULOMB = 1
@@ -145,4 +160,27 @@ def rhs(x, u_d, u_q, t_load, f_load, p, dx):
     dx[X_WM] = t_net / p[P_J]
     dx[X_Z] = z_rate
     dx[X_XL] = x[X_VL]
-    dx[X_VL] = (f_b - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
+    if p[P_LOAD_MODEL] == LOAD_LINKAGE:
+        q = p[P_LINK:]
+        hinges = np.empty((L.N_HINGES, 2))
+        f_axial = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], 0.0, q, dx[X_LINK:], hinges)
+        swing = x[X_LINK + L.N_POS + L.PHI]
+        centripetal = (q[L.L0] + x[X_XL]) * swing * swing
+        dx[X_VL] = (f_b + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
+    else:
+        dx[X_VL] = (f_b - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
+
+
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def active_states(p):
+    """How many states move: all with the linkage, the drive's X_LINK without (the linkage's
+    states then stay as they are and rhs leaves their derivatives untouched)."""
+    return N_STATE if p[P_LOAD_MODEL] == LOAD_LINKAGE else X_LINK
+
+
+@nb.njit(cache=True, error_model="numpy")
+def rudder_angle(x, p):
+    """Rudder angle (rad): the linkage's rocker arm, or rod position / arm of the lumped stage."""
+    if p[P_LOAD_MODEL] == LOAD_LINKAGE:
+        return x[X_LINK + L.TD]
+    return x[X_XL] / p[P_ARM]

@@ -11,21 +11,15 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
+from ..config import MM, RPM, Strict  # noqa: F401 - RPM and Strict are part of this API
 from ..interface import MEASUREMENT_NAMES
 from . import actuator as A
+from . import linkage as L
 from .drivetrain import transmission_ratio
 from .friction import bristle_damping_for_ratio
-
-RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
-MM = 1e-3  # m per mm
-
-
-class Strict(BaseModel):
-    """Base of every configuration model: no unknown keys, no NaN/inf, assignment validated."""
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+from .linkage import LinkageParams
 
 
 class MotorParams(Strict):
@@ -126,13 +120,19 @@ class SensorParams(Strict):
 
 
 class PlantParams(Strict):
-    """The whole actuator: motor, drive train, friction, backlash, load."""
+    """The whole actuator: motor, drive train, friction, backlash, load.
+
+    With ``linkage`` set, the clearance-joint linkage replaces the lumped rudder stage: the rod
+    mass comes from the linkage, and the load section keeps only its viscous damping (its
+    rudder fields then serve only to convert rudder-angle references for a lumped plant).
+    """
 
     motor: MotorParams
     drivetrain: DrivetrainParams
     friction: FrictionParams
     backlash: BacklashParams
     load: LoadParams
+    linkage: LinkageParams | None = None
 
     @property
     def ratio_m_per_rad(self) -> float:
@@ -142,9 +142,28 @@ class PlantParams(Strict):
 
     @property
     def load_mass_kg(self) -> float:
-        """Load-side mass: rod plus rudder inertia reflected through the arm, J_r / r^2."""
-        ld = self.load
-        return ld.rod_mass_kg + ld.rudder_inertia_kgm2 / (ld.rudder_arm_mm * MM) ** 2
+        """Load-side mass seen at the rod (kg), for design and for the contact damping.
+
+        Lumped stage: rod plus rudder inertia through the arm, J_r / r^2. Linkage: the rod plus
+        every body's inertia through the rigid kinematics at mid stroke, sum of m |dp/ds|^2 +
+        I (dtheta/ds)^2 (a 1 um central difference of the rigid pose).
+        """
+        if self.linkage is None:
+            ld = self.load
+            return ld.rod_mass_kg + ld.rudder_inertia_kgm2 / (ld.rudder_arm_mm * MM) ** 2
+        q = self.linkage.pack()
+        ds = 1e-6
+        rate = (L.rigid_pose(ds, q) - L.rigid_pose(-ds, q))[: L.N_POS] / (2 * ds)
+        lk = self.linkage
+        return (
+            lk.rod_mass_kg
+            + lk.actuator_inertia_kgm2 * rate[L.PHI] ** 2
+            + lk.rocker_mass_kg * (rate[L.XB] ** 2 + rate[L.YB] ** 2)
+            + lk.rocker_inertia_kgm2 * rate[L.TB] ** 2
+            + lk.link_mass_kg * (rate[L.XC] ** 2 + rate[L.YC] ** 2)
+            + lk.link_inertia_kgm2 * rate[L.TC] ** 2
+            + lk.rudder_inertia_kgm2 * rate[L.TD] ** 2
+        )
 
     @property
     def total_inertia_kgm2(self) -> float:
@@ -196,4 +215,16 @@ class PlantParams(Strict):
         p[A.P_CL] = ld.viscous_Ns_per_m
         p[A.P_ARM] = ld.rudder_arm_mm * MM
         p[A.P_UDC] = m.dc_bus_V
+        if self.linkage is not None:
+            p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
+            p[A.P_ML] = self.linkage.rod_mass_kg
+            p[A.P_LINK :] = self.linkage.pack()
         return p
+
+    def initial_state(self) -> np.ndarray:
+        """Plant state at rest at mid stroke: currents, speeds zero; the linkage in its rigid
+        pose (every pin centred in its hole)."""
+        x = np.zeros(A.N_STATE)
+        if self.linkage is not None:
+            x[A.X_LINK :] = L.rigid_pose(0.0, self.linkage.pack())
+        return x

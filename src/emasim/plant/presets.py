@@ -7,6 +7,8 @@ docs/assumptions in the README). Scenario files start from :data:`PRESETS` and o
 
 import math
 
+from .contact import ContactParams
+from .linkage import LinkageParams
 from .parameters import (
     BacklashParams,
     DrivetrainParams,
@@ -88,6 +90,54 @@ def lumped_rudder() -> LoadParams:
     )
 
 
+def paper_hinge_contact() -> ContactParams:
+    """The paper's Table 1: ADAMS IMPACT contact and Coulomb friction at hinges 1-4."""
+    return ContactParams(
+        stiffness_N_per_mm_e=1.0e5,
+        exponent=2.2,
+        damping_Ns_per_mm=10.0,
+        penetration_depth_mm=0.1,
+        mu_static=0.3,
+        mu_dynamic=0.1,
+        stiction_speed_mm_s=100.0,
+        dynamic_speed_mm_s=1000.0,
+    )
+
+
+def reference_linkage(clearance_mm: float = 0.01) -> LinkageParams:
+    """Our reference geometry (the paper shows only a picture).
+
+    The auxiliary rocker B and the rocker arm D have equal 200 mm arms, and the 500 mm link
+    joins them into a parallelogram, so the rudder turns with B. The rod pushes B's other arm
+    (250 mm, hanging down) nearly square at mid stroke, so +-125 mm of rod travel turns the
+    rudder by about +-30 deg (sin 30 deg = 125/250). The actuator swings about A0, 800 mm behind
+    the rod end. Masses: a 15 kg actuator body about its pivot (4 kg m^2), a 3 kg rod, 2.5 kg
+    rocker, 1.5 kg link, and the rudder with its inertia disk, 1.5 kg m^2 as in the lumped stage.
+    Pins of 10 mm radius, every hinge with the paper's 0.01 mm clearance and Table 1 contact.
+    """
+    return LinkageParams(
+        actuator_pivot_mm=(-800.0, -750.0),
+        rocker_pivot_mm=(0.0, -500.0),
+        rudder_shaft_mm=(0.0, 0.0),
+        rod_length_mm=800.0,
+        actuator_inertia_kgm2=4.0,
+        rod_mass_kg=3.0,
+        rocker_mass_kg=2.5,
+        rocker_inertia_kgm2=0.03,
+        rocker_arm_1_mm=250.0,
+        rocker_arm_2_mm=200.0,
+        link_mass_kg=1.5,
+        link_inertia_kgm2=0.031,
+        link_length_mm=500.0,
+        rudder_inertia_kgm2=1.5,
+        rudder_arm_mm=200.0,
+        rudder_damping_Nms_per_rad=0.0,
+        pin_radius_mm=10.0,
+        hinge_clearance_mm=(clearance_mm,) * 4,
+        contact=paper_hinge_contact(),
+    )
+
+
 def sea805() -> PlantParams:
     """The paper's motor on the SEA805 drive train, LuGre friction, 0.1 mm backlash, rudder."""
     return PlantParams(
@@ -99,7 +149,12 @@ def sea805() -> PlantParams:
     )
 
 
-PRESETS = {"sea805": sea805}
+def sea805_linkage(clearance_mm: float = 0.01) -> PlantParams:
+    """sea805 with the clearance-joint linkage in place of the lumped rudder stage."""
+    return sea805().model_copy(update={"linkage": reference_linkage(clearance_mm)})
+
+
+PRESETS = {"sea805": sea805, "sea805-linkage": sea805_linkage}
 
 
 def bench_sensors() -> SensorParams:

@@ -44,7 +44,7 @@ def true_values(x, p, values):
     values[M_ID] = x[A.X_ID]
     values[M_IQ] = x[A.X_IQ]
     values[M_FORCE] = A.backlash_force(x, p)
-    values[M_RUDDER] = x[A.X_XL] / p[A.P_ARM]
+    values[M_RUDDER] = A.rudder_angle(x, p)
 
 
 @nb.njit(cache=True, error_model="numpy")

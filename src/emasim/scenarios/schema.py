@@ -17,9 +17,10 @@ from ..control.current import CurrentPI
 from ..control.pid import SpeedPI
 from ..control.registry import CASCADES, PositionController, SpeedController
 from ..plant import actuator as A
+from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..signals import Term, combine, encode
+from ..signals import Table, Term, combine, encode, signal_value
 from ..sim.setup import Setup, plant_facts
 
 
@@ -75,13 +76,26 @@ class Reference(Strict):
         """The outermost loop this reference closes: 'speed' or 'position'."""
         return "speed" if self.speed_rpm else "position"
 
-    def encode(self, plant: PlantParams) -> np.ndarray:
-        """SI signal: motor speed (rad/s) or rod position (m); rudder angles go through the arm."""
+    def encode(self, plant: PlantParams, duration_s: float) -> np.ndarray:
+        """SI signal: motor speed (rad/s) or rod position (m).
+
+        A rudder angle goes through the lumped arm, or, with the linkage, through its rigid
+        inverse kinematics: sampled every millisecond over the run and interpolated (a table).
+        """
         if self.speed_rpm:
             return encode(self.speed_rpm, RPM)
         if self.position_mm:
             return encode(self.position_mm, MM)
-        return encode(self.rudder_deg, math.radians(1.0) * plant.load.rudder_arm_mm * MM)
+        if plant.linkage is None:
+            return encode(self.rudder_deg, math.radians(1.0) * plant.load.rudder_arm_mm * MM)
+        q = plant.linkage.pack()
+        half_stroke = 0.5 * plant.drivetrain.stroke_mm * MM
+        s_grid = np.linspace(-half_stroke, half_stroke, 501)
+        angle_grid = rudder_angle_of_extension(s_grid, q)
+        angle = encode(self.rudder_deg, math.radians(1.0))
+        times = np.arange(0.0, duration_s + 1e-3, 1e-3)
+        rod = np.interp([signal_value(angle, t) for t in times], angle_grid, s_grid)
+        return encode([Table(time_s=list(times), values=list(rod))])
 
 
 class Load(Strict):
@@ -213,6 +227,15 @@ class Scenario(Strict):
         return data
 
     @model_validator(mode="after")
+    def _loads_fit_the_plant(self):
+        if self.plant.linkage is not None and self.load.rudder_torque_Nm:
+            raise ValueError(
+                "load.rudder_torque_Nm is not yet applied to the linkage's rudder shaft; "
+                "use it with the lumped rudder stage (plant.preset = 'sea805')"
+            )
+        return self
+
+    @model_validator(mode="after")
     def _loops_match(self):
         loop = self.reference.loop
         _check_loops(self.controllers, loop, "controllers")
@@ -254,7 +277,7 @@ class Scenario(Strict):
             sample_period_s=ts,
             substeps=self.solver.substeps,
             duration_s=self.duration_s,
-            reference=self.reference.encode(self.plant),
+            reference=self.reference.encode(self.plant, self.duration_s),
             motor_load=motor_load,
             rod_load=rod_load,
             speed=c.speed.build(facts, ts),
@@ -263,6 +286,7 @@ class Scenario(Strict):
             sensors=self.sensors.pack(),
             record_every=self.solver.record_every,
             seed=self.seed,
+            x0=self.plant.initial_state(),
             limits=state_limits(self.plant, stroke_m),
         )
 
@@ -270,7 +294,7 @@ class Scenario(Strict):
 def state_limits(plant: PlantParams, stroke_m: float) -> np.ndarray:
     """Bounds beyond which a state means a runaway simulation (far outside any real motion)."""
     m = plant.motor
-    limits = np.empty(A.N_STATE)
+    limits = np.full(A.N_STATE, 1e3)  # linkage: positions (m, rad) and rates far beyond motion
     limits[A.X_ID] = limits[A.X_IQ] = 20.0 * m.max_current_A
     limits[A.X_WM] = 20.0 * m.max_speed_rpm * RPM
     limits[A.X_THETA] = 1e3 * stroke_m / plant.ratio_m_per_rad

@@ -103,9 +103,9 @@ def control_tick(
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _stage(xs, x, k, dt, z):
-    """xs = x + dt k for every state but the bristle, which is set to z."""
-    for i in range(A.N_STATE):
+def _stage(xs, x, k, dt, z, n):
+    """xs = x + dt k for the first n states but the bristle, which is set to z."""
+    for i in range(n):
         xs[i] = x[i] + dt * k[i]
     xs[A.X_Z] = z
 
@@ -122,19 +122,20 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, h, work):
     accurate for smooth loads.
     """
     k1, k2, k3, k4, xs = work[0], work[1], work[2], work[3], work[4]
+    n = A.active_states(p)
     z0 = x[A.X_Z]
     w0 = x[A.X_WM]
     z_half, z_full = A.bristle_half_and_full_step(z0, w0, h, p)
     t_load = signal_value(motor_load, t + 0.5 * h)
     f_load = signal_value(rod_load, t + 0.5 * h)
     A.rhs(x, u_d, u_q, t_load, f_load, p, k1)
-    _stage(xs, x, k1, 0.5 * h, z_half)
+    _stage(xs, x, k1, 0.5 * h, z_half, n)
     A.rhs(xs, u_d, u_q, t_load, f_load, p, k2)
-    _stage(xs, x, k2, 0.5 * h, z_half)
+    _stage(xs, x, k2, 0.5 * h, z_half, n)
     A.rhs(xs, u_d, u_q, t_load, f_load, p, k3)
-    _stage(xs, x, k3, h, z_full)
+    _stage(xs, x, k3, h, z_full, n)
     A.rhs(xs, u_d, u_q, t_load, f_load, p, k4)
-    for i in range(A.N_STATE):
+    for i in range(n):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
 
@@ -171,7 +172,7 @@ def record(row, t, x, p, motor_load, rod_load, u_d, u_q, speed_ref, iq_ref, posi
     row[e + 9] = signal_value(rod_load, t)
     row[e + 10] = meas[M_SPEED]
     row[e + 11] = meas[M_POSITION]
-    row[e + 12] = x[A.X_XL] / p[A.P_ARM]
+    row[e + 12] = A.rudder_angle(x, p)
 
 
 F8 = types.float64
@@ -244,7 +245,7 @@ def run_ticks(
     if k0 == 0:
         seed_noise(seed)
     h = ts / substeps
-    work = np.empty((5, A.N_STATE))
+    work = np.zeros((5, A.N_STATE))
     meas = np.empty(N_MEAS)
     ref = np.empty(N_REF)
     out = np.empty(N_OUT)

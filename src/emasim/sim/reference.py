@@ -20,8 +20,9 @@ from ..signals import signal_value
 from .engine import TRACE_COLUMNS, control_tick, record
 from .result import Result
 
-# absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s
-ATOL = np.array([1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12])
+# absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s, then the linkage's
+# positions (rad, m) and rates
+ATOL = np.concatenate([[1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12], np.full(16, 1e-12)])
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -29,7 +30,7 @@ def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, t_end):
     """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
     boundary belongs to the next tick, as it does in the engine."""
     t_in = min(t, t_end - 1e-9 * (abs(t_end) + 1e-3))
-    dx = np.empty(A.N_STATE)
+    dx = np.zeros(A.N_STATE)  # the linkage rows stay 0 with the lumped rudder
     A.rhs(x, u_d, u_q, signal_value(motor_load, t_in), signal_value(rod_load, t_in), p, dx)
     return dx
 

@@ -1,0 +1,348 @@
+"""The control-surface linkage: planar bodies tied by clearance-joint hinges (the ADAMS model).
+
+Chain (SPEC 1.6): the actuator swings about its ideal pivot A0 (bearing housing 1) and its rod
+slides out by s; the rod end carries the pin of hinge 1 -> auxiliary rocker B, which hangs in
+bearing housing 3 on the pin of hinge 3 -> hinge 2 -> auxiliary link C -> hinge 4 -> rocker arm
+D, fixed to the rudder shaft, which turns in ideal bearings about O and carries the inertia
+disk. Hinges 1-4 are pin-in-hole contacts (emasim.plant.contact) with a radial clearance; with
+every hinge a clearance joint there is no closed loop of ideal joints, so the state is
+
+    phi (actuator swing), B = (xB, yB, thB), C = (xC, yC, thC), thD (rudder), and their rates
+
+(16 states), while s, ds/dt come from the drive (or are prescribed, as the paper's velocity
+driver did). Equations of motion (planar Newton-Euler; gravity acts out of the plane):
+
+    (I_E + m r^2) phi'' = tau_A0 - 2 m r s' phi'           r = L0 + s, rod mass m at the rod end
+    m_B [xB'', yB''] = F_B,    I_B thB'' = M_B             (forces and moments of the contacts)
+    m_C [xC'', yC''] = F_C,    I_C thC'' = M_C
+    J_D thD'' = M_D - c_D thD' + T_rudder(t)
+
+and on the rod axis the linkage pushes with F_axial = u . F_hinge1 (u the rod direction); the
+rod's own axial equation m (s'' - r phi'^2) = F_drive + F_axial belongs to the drive.
+
+Contact at a hinge: d = pin centre - hole centre, penetration delta = |d| - clearance. In
+contact, n = d/|d|, the contact point is pc = pin centre + R_pin n, and with the relative
+velocity w = v_pin(pc) - v_hole(pc) of the material points there, delta' = n.w and the slip
+speed is v_t = t.w (t = n rotated by +90 deg). The pin feels F = -Fn n - mu(v_t) Fn t at pc,
+the hole body the opposite.
+
+Body frames: B's origin and centre of mass at its hole of hinge 3, its hinge-1 hole at
+(0, -r1) and its hinge-2 pin at (r2, 0); C's centre at mid-length, hinge-2 hole at
+(0, -Lc/2), hinge-4 pin at (0, +Lc/2); D turns about O with its hinge-4 hole at (r4, 0).
+All numbers are parameters (presets.py holds our reference geometry).
+"""
+
+import math
+
+import numba as nb
+import numpy as np
+from pydantic import Field
+
+from ..config import MM, Strict
+from . import contact
+
+# --- state of the linkage (positions, then rates) ----------------------------------------
+PHI, XB, YB, TB, XC, YC, TC, TD = range(8)
+N_POS = 8
+N_LINK = 2 * N_POS
+LINK_STATE_NAMES = tuple(
+    f"linkage_{name}"
+    for name in (
+        "actuator_angle_rad",
+        "rocker_x_m",
+        "rocker_y_m",
+        "rocker_angle_rad",
+        "link_x_m",
+        "link_y_m",
+        "link_angle_rad",
+        "rudder_angle_rad",
+    )
+) + tuple(
+    f"linkage_{name}"
+    for name in (
+        "actuator_rate_rad_s",
+        "rocker_vx_m_s",
+        "rocker_vy_m_s",
+        "rocker_rate_rad_s",
+        "link_vx_m_s",
+        "link_vy_m_s",
+        "link_rate_rad_s",
+        "rudder_rate_rad_s",
+    )
+)
+
+# --- parameters (SI), filled by LinkageParams.pack ----------------------------------------
+(
+    A0X,
+    A0Y,
+    H3X,
+    H3Y,
+    OX,
+    OY,
+    L0,
+    I_E,
+    M_ROD,
+    M_B,
+    I_B,
+    R1,
+    R2,
+    M_C,
+    I_C,
+    LC,
+    J_D,
+    R4,
+    C_D,
+    R_PIN,
+    CLEAR,
+) = range(21)
+CONTACT = CLEAR + 4  # the contact law's packed parameters follow the four clearances
+N_LINK_PARAMS = CONTACT + contact.N_CONTACT
+
+# bodies
+GROUND, ROD, BODY_B, BODY_C, BODY_D = range(5)
+N_HINGES = 4
+# hinge h: (pin body, pin local x, y code, hole body, hole local code); local points by code
+H1, H2, H3, H4 = range(4)
+
+
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def _rotate(x, y, angle):
+    c, s = math.cos(angle), math.sin(angle)
+    return c * x - s * y, s * x + c * y
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _local_point(hinge, on_pin, q):
+    """Body-frame coordinates of a hinge's pin (on_pin) or hole on its body."""
+    if hinge == H1:
+        return (0.0, 0.0) if on_pin else (0.0, -q[R1])  # pin: rod end; hole: B
+    if hinge == H3:
+        return (q[H3X], q[H3Y]) if on_pin else (0.0, 0.0)  # pin: ground; hole: B
+    if hinge == H2:
+        return (q[R2], 0.0) if on_pin else (0.0, -0.5 * q[LC])  # pin: B; hole: C
+    return (0.0, 0.5 * q[LC]) if on_pin else (q[R4], 0.0)  # H4 pin: C; hole: D
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _hinge_bodies(hinge):
+    """(pin body, hole body) of a hinge."""
+    if hinge == H1:
+        return ROD, BODY_B
+    if hinge == H3:
+        return GROUND, BODY_B
+    if hinge == H2:
+        return BODY_B, BODY_C
+    return BODY_C, BODY_D
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _frame(body, y, s, s_dot, q):
+    """Reference point, its velocity, orientation and angular rate of a body:
+    (rx, ry, vx, vy, angle, omega). The rod's frame sits at the rod end, turning with phi."""
+    v = y[N_POS:]
+    if body == GROUND:
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if body == ROD:
+        phi, w = y[PHI], v[PHI]
+        r = q[L0] + s
+        ux, uy = math.cos(phi), math.sin(phi)
+        return (
+            q[A0X] + r * ux,
+            q[A0Y] + r * uy,
+            s_dot * ux - r * w * uy,
+            s_dot * uy + r * w * ux,
+            phi,
+            w,
+        )
+    if body == BODY_B:
+        return y[XB], y[YB], v[XB], v[YB], y[TB], v[TB]
+    if body == BODY_C:
+        return y[XC], y[YC], v[XC], v[YC], y[TC], v[TC]
+    return q[OX], q[OY], 0.0, 0.0, y[TD], v[TD]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _point(body, lx, ly, y, s, s_dot, q):
+    """World position of a body-fixed point (local lx, ly); the ground's points are absolute."""
+    rx, ry, _, _, angle, _ = _frame(body, y, s, s_dot, q)
+    if body == GROUND:
+        return lx, ly
+    dx, dy = _rotate(lx, ly, angle)
+    return rx + dx, ry + dy
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _velocity_at(body, px, py, y, s, s_dot, q):
+    """Velocity of the material point of ``body`` that is at (px, py)."""
+    rx, ry, vx, vy, _, w = _frame(body, y, s, s_dot, q)
+    return vx - w * (py - ry), vy + w * (px - rx)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def hinge_contact(hinge, y, s, s_dot, q):
+    """Contact of one hinge: (Fx, Fy) on the pin body at (px, py), penetration (m), |Fn| (N).
+
+    Returns (fx, fy, px, py, delta, fn); zero force when the pin is clear of the hole wall.
+    """
+    pin_body, hole_body = _hinge_bodies(hinge)
+    lx, ly = _local_point(hinge, True, q)
+    pin_x, pin_y = _point(pin_body, lx, ly, y, s, s_dot, q)
+    lx, ly = _local_point(hinge, False, q)
+    hole_x, hole_y = _point(hole_body, lx, ly, y, s, s_dot, q)
+    dx, dy = pin_x - hole_x, pin_y - hole_y
+    dist = math.sqrt(dx * dx + dy * dy)
+    delta = dist - q[CLEAR + hinge]
+    if delta <= 0.0:
+        return 0.0, 0.0, pin_x, pin_y, delta, 0.0
+    nx, ny = dx / dist, dy / dist
+    px, py = pin_x + q[R_PIN] * nx, pin_y + q[R_PIN] * ny
+    vpx, vpy = _velocity_at(pin_body, px, py, y, s, s_dot, q)
+    vhx, vhy = _velocity_at(hole_body, px, py, y, s, s_dot, q)
+    wx, wy = vpx - vhx, vpy - vhy
+    c = q[CONTACT:]
+    fn = contact.normal_force(delta, nx * wx + ny * wy, c)
+    ft = -contact.friction_coefficient(-ny * wx + nx * wy, c) * fn
+    return -fn * nx - ft * ny, -fn * ny + ft * nx, px, py, delta, fn
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _apply(body, fx, fy, px, py, y, s, s_dot, q, gen):
+    """Add a force at a point to the generalised forces of a body.
+
+    gen layout: [tau about A0, Fx_B, Fy_B, M_B, Fx_C, Fy_C, M_C, M_D, F_axial_rod]."""
+    if body == GROUND:
+        return
+    if body == ROD:
+        gen[0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
+        gen[8] += math.cos(y[PHI]) * fx + math.sin(y[PHI]) * fy
+        return
+    rx, ry, _, _, _, _ = _frame(body, y, s, s_dot, q)
+    moment = (px - rx) * fy - (py - ry) * fx
+    if body == BODY_B:
+        gen[1] += fx
+        gen[2] += fy
+        gen[3] += moment
+    elif body == BODY_C:
+        gen[4] += fx
+        gen[5] += fy
+        gen[6] += moment
+    else:
+        gen[7] += moment
+
+
+@nb.njit(cache=True, error_model="numpy")
+def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
+    """Write dy/dt of the linkage; return the axial force of the linkage on the rod (N).
+
+    y: the 16 linkage states; s, s_dot: rod extension (m) and rate; rudder_torque: external
+    torque on the rudder shaft (N m); q: linkage parameters. ``hinges`` (4 x 2) receives each
+    hinge's penetration (m) and normal force (N).
+    """
+    gen = np.zeros(9)
+    for h in range(N_HINGES):
+        fx, fy, px, py, delta, fn = hinge_contact(h, y, s, s_dot, q)
+        hinges[h, 0] = delta
+        hinges[h, 1] = fn
+        if fn == 0.0:
+            continue
+        pin_body, hole_body = _hinge_bodies(h)
+        _apply(pin_body, fx, fy, px, py, y, s, s_dot, q, gen)
+        _apply(hole_body, -fx, -fy, px, py, y, s, s_dot, q, gen)
+    v = y[N_POS:]
+    r = q[L0] + s
+    for i in range(N_POS):
+        dy[i] = v[i]
+    dy[N_POS + PHI] = (gen[0] - 2.0 * q[M_ROD] * r * s_dot * v[PHI]) / (q[I_E] + q[M_ROD] * r * r)
+    dy[N_POS + XB] = gen[1] / q[M_B]
+    dy[N_POS + YB] = gen[2] / q[M_B]
+    dy[N_POS + TB] = gen[3] / q[I_B]
+    dy[N_POS + XC] = gen[4] / q[M_C]
+    dy[N_POS + YC] = gen[5] / q[M_C]
+    dy[N_POS + TC] = gen[6] / q[I_C]
+    dy[N_POS + TD] = (gen[7] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
+    return gen[8]
+
+
+def _circle_intersection(c1, r1, c2, r2, near):
+    """The intersection point of two circles closest to ``near``."""
+    c1, c2 = np.asarray(c1, float), np.asarray(c2, float)
+    d = np.linalg.norm(c2 - c1)
+    if d > r1 + r2 or d < abs(r1 - r2):
+        raise ValueError("linkage geometry cannot close at this rod extension")
+    a = (r1**2 - r2**2 + d**2) / (2 * d)
+    h = math.sqrt(max(r1**2 - a**2, 0.0))
+    mid = c1 + a * (c2 - c1) / d
+    perp = np.array([-(c2 - c1)[1], (c2 - c1)[0]]) / d
+    candidates = (mid + h * perp, mid - h * perp)
+    return min(candidates, key=lambda p: np.linalg.norm(p - near))
+
+
+def rigid_pose(s: float, q: np.ndarray) -> np.ndarray:
+    """The 16 linkage states with every clearance closed, at rod extension s, at rest.
+
+    Rigid kinematics: the rod end is at L0 + s from A0 and r1 from B's pivot H3; B's hinge-2
+    pin is then fixed, and the link's other end is Lc from it and r4 from O.
+    """
+    a0, h3, o = q[[A0X, A0Y]], q[[H3X, H3Y]], q[[OX, OY]]
+    p1 = _circle_intersection(a0, q[L0] + s, h3, q[R1], near=h3 + [0.0, -q[R1]])
+    theta_b = math.atan2(p1[0] - h3[0], -(p1[1] - h3[1]))  # hole at (0, -r1) turned by thB
+    p2 = h3 + q[R2] * np.array([math.cos(theta_b), math.sin(theta_b)])
+    p4 = _circle_intersection(p2, q[LC], o, q[R4], near=o + [q[R4], 0.0])
+    y = np.zeros(N_LINK)
+    y[PHI] = math.atan2(p1[1] - a0[1], p1[0] - a0[0])
+    y[XB], y[YB], y[TB] = h3[0], h3[1], theta_b
+    y[XC], y[YC] = 0.5 * (p2 + p4)
+    y[TC] = math.atan2(p4[1] - p2[1], p4[0] - p2[0]) - 0.5 * math.pi
+    y[TD] = math.atan2(p4[1] - o[1], p4[0] - o[0])
+    return y
+
+
+def rudder_angle_of_extension(s: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Rigid-kinematics rudder angle (rad) for rod extensions s (m)."""
+    return np.array([rigid_pose(float(x), q)[TD] for x in np.atleast_1d(s)])
+
+
+class LinkageParams(Strict):
+    """The linkage, in mm, kg and kg m^2 (see the module docstring for the frames)."""
+
+    actuator_pivot_mm: tuple[float, float] = Field(description="A0, bearing housing 1")
+    rocker_pivot_mm: tuple[float, float] = Field(description="H3, bearing housing 3")
+    rudder_shaft_mm: tuple[float, float] = Field(description="O, bearing housings 1/2")
+    rod_length_mm: float = Field(gt=0, description="L0: A0 to the rod end at mid stroke")
+    actuator_inertia_kgm2: float = Field(gt=0, description="I_E: actuator body about A0")
+    rod_mass_kg: float = Field(gt=0)
+    rocker_mass_kg: float = Field(gt=0)
+    rocker_inertia_kgm2: float = Field(gt=0)
+    rocker_arm_1_mm: float = Field(gt=0, description="r1: H3 to hinge 1")
+    rocker_arm_2_mm: float = Field(gt=0, description="r2: H3 to hinge 2")
+    link_mass_kg: float = Field(gt=0)
+    link_inertia_kgm2: float = Field(gt=0)
+    link_length_mm: float = Field(gt=0, description="Lc: hinge 2 to hinge 4")
+    rudder_inertia_kgm2: float = Field(gt=0, description="J_D: rocker arm, rudder, disk")
+    rudder_arm_mm: float = Field(gt=0, description="r4: O to hinge 4")
+    rudder_damping_Nms_per_rad: float = Field(ge=0)
+    pin_radius_mm: float = Field(gt=0)
+    hinge_clearance_mm: tuple[float, float, float, float] = Field(
+        description="radial clearance of hinges 1, 2, 3, 4"
+    )
+    contact: contact.ContactParams
+
+    def pack(self) -> np.ndarray:
+        """The flat SI array read by :func:`linkage_rhs`."""
+        q = np.zeros(N_LINK_PARAMS)
+        q[[A0X, A0Y]] = np.array(self.actuator_pivot_mm) * MM
+        q[[H3X, H3Y]] = np.array(self.rocker_pivot_mm) * MM
+        q[[OX, OY]] = np.array(self.rudder_shaft_mm) * MM
+        q[L0] = self.rod_length_mm * MM
+        q[I_E], q[M_ROD] = self.actuator_inertia_kgm2, self.rod_mass_kg
+        q[M_B], q[I_B] = self.rocker_mass_kg, self.rocker_inertia_kgm2
+        q[R1], q[R2] = self.rocker_arm_1_mm * MM, self.rocker_arm_2_mm * MM
+        q[M_C], q[I_C] = self.link_mass_kg, self.link_inertia_kgm2
+        q[LC] = self.link_length_mm * MM
+        q[J_D], q[R4] = self.rudder_inertia_kgm2, self.rudder_arm_mm * MM
+        q[C_D] = self.rudder_damping_Nms_per_rad
+        q[R_PIN] = self.pin_radius_mm * MM
+        clearance = np.array(self.hinge_clearance_mm) * MM
+        q[[CLEAR + H1, CLEAR + H2, CLEAR + H3, CLEAR + H4]] = clearance
+        q[CONTACT:] = self.contact.pack()
+        return q
