@@ -125,3 +125,20 @@ def plot_bench(results: dict, title: str | None = None):
     if title:
         fig.suptitle(title)
     return fig
+
+
+def plot_clearance_sweep(rows: list[dict]):
+    """Rudder steady RMS error and vibration amplitude against hinge clearance, per controller."""
+    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5), constrained_layout=True)
+    for label in dict.fromkeys(r["controller"] for r in rows):
+        mine = [r for r in rows if r["controller"] == label]
+        clearance = [r["clearance_mm"] for r in mine]
+        axes[0].plot(clearance, [r["steady_error_rms_deg"] for r in mine], "o-", label=label)
+        axes[1].plot(clearance, [r["chatter_amplitude_deg"] for r in mine], "o-", label=label)
+    axes[0].set_ylabel("steady RMS error (deg)")
+    axes[1].set_ylabel("vibration amplitude (deg)")
+    for ax in axes:
+        ax.set_xlabel("hinge clearance (mm)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    return fig

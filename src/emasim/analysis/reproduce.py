@@ -34,7 +34,10 @@ EXPERIMENTS = (
     Experiment("position-step", "position_step", "Fig. 8"),
     Experiment("bench-step", "bench_step", "Figs. 16-19, Tables 2-5"),
     Experiment("bench-sine", "bench_sine", "Figs. 20-23, Tables 6-7"),
+    Experiment("cosim-step", "cosim_step", "Figs. 13-14"),
 )
+SWEEP_CLEARANCES_MM = (0.0, 0.01, 0.05, 0.1)
+SWEEP_DURATION_S = 2.0
 
 # paper table key -> (our metric key, unit); lower magnitude is better for every one of them
 BENCH_STEP_ROWS = {
@@ -175,11 +178,38 @@ def simulation_tables(paper: dict, metrics: dict) -> dict:
             }
             for label, m in metrics["speed-sine"].items()
         ]
-    if "speed-step" in metrics:
-        tables["speed_step"] = [
-            {"controller": label, **m} for label, m in metrics["speed-step"].items()
-        ]
+    for name in ("speed-step", "cosim-step"):
+        if name in metrics:
+            tables[name.replace("-", "_")] = [
+                {"controller": label, **m} for label, m in metrics[name].items()
+            ]
     return tables
+
+
+def clearance_sweep() -> list[dict]:
+    """cosim-step at every hinge clearance of SWEEP_CLEARANCES_MM, SWEEP_DURATION_S long:
+    steady RMS error and vibration amplitude of the rudder, per controller set."""
+    from ..scenarios.loader import load_scenario
+    from ..sim.runner import run_comparison
+
+    rows = []
+    for clearance in SWEEP_CLEARANCES_MM:
+        settings = [
+            f"plant.linkage.hinge_clearance_mm=[{clearance}, {clearance}, {clearance}, "
+            f"{clearance}]",
+            f"duration_s={SWEEP_DURATION_S}",
+        ]
+        comparison = run_comparison(load_scenario("cosim-step", settings=settings))
+        for label, m in comparison.metrics.items():
+            rows.append(
+                {
+                    "clearance_mm": clearance,
+                    "controller": label,
+                    "steady_error_rms_deg": m["steady_error_rms_deg"],
+                    "chatter_amplitude_deg": m["chatter_amplitude_deg"],
+                }
+            )
+    return rows
 
 
 def build_tables(metrics: dict) -> dict:
@@ -325,6 +355,12 @@ def write_report(folder: Path, tables: dict, scenarios: dict, figures: dict, not
             parts.append(_bench_markdown(tables[key]))
         elif key in tables:
             parts.append(_dict_rows_markdown(tables[key]))
+        if key == "cosim_step" and "clearance_sweep" in tables:
+            parts.append(
+                f"Clearance sweep ({SWEEP_DURATION_S:g} s runs of the same experiment, every "
+                "hinge at the clearance shown):"
+            )
+            parts.append(_dict_rows_markdown(tables["clearance_sweep"]))
         tuning = sc.get("tuning")
         parts.append(
             "Gains: "
@@ -365,7 +401,7 @@ def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> 
     from ..scenarios.loader import load_scenario
     from ..sim.result import write_atomically
     from ..sim.runner import run_comparison
-    from .plots import plot_bench, plot_comparison, save_figure
+    from .plots import plot_bench, plot_clearance_sweep, plot_comparison, save_figure
 
     chosen = [e for e in EXPERIMENTS if not only or e.scenario in only]
     comparisons = {}
@@ -375,6 +411,8 @@ def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> 
             progress((i + 1) / len(chosen))
     metrics = {name: c.metrics for name, c in comparisons.items()}
     tables = build_tables(metrics)
+    if "cosim-step" in comparisons:
+        tables["clearance_sweep"] = clearance_sweep()
 
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
@@ -384,13 +422,17 @@ def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> 
             run_folder = folder / "runs" / name
             run_folder.mkdir()
             comparison.write_files(run_folder, plot=False)
-            if name.startswith("bench"):
+            if name.startswith("bench") or name == "cosim-step":
                 fig = plot_bench(comparison.results, name)
             else:
                 fig = plot_comparison(comparison.results, name)
             path = f"figures/{name}.png"
             save_figure(fig, folder / path)
             figures[name] = [(name, path)]
+        if "clearance_sweep" in tables:
+            path = "figures/clearance-sweep.png"
+            save_figure(plot_clearance_sweep(tables["clearance_sweep"]), folder / path)
+            figures["cosim-step"].append(("clearance sweep", path))
         write_report(
             folder, tables, {n: c.scenario for n, c in comparisons.items()}, figures, notes()
         )

@@ -30,6 +30,12 @@ class Solver(Strict):
     sample_period_s: float = Field(default=1e-4, gt=0, le=0.01)
     step_s: float = Field(default=1e-5, gt=0, le=0.01)
     record_period_s: float = Field(default=1e-3, gt=0, le=1.0)
+    communication_step_s: float | None = Field(
+        default=None,
+        gt=0,
+        le=0.1,
+        description="co-simulate drive and linkage, exchanging at this step (needs a linkage)",
+    )
 
     @model_validator(mode="after")
     def _whole_multiples(self):

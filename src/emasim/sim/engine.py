@@ -308,22 +308,27 @@ def _divergence_message(setup, status) -> str:
     )
 
 
-def simulate(setup, progress=None):
-    """Run ``setup`` (a :class:`emasim.sim.setup.Setup`) on the compiled engine.
+class EngineRun:
+    """A run of a Setup on the compiled loop, advanced tick range by tick range.
 
-    progress, if given, is called with the fraction done after each chunk of ticks. Returns a
-    :class:`emasim.sim.result.Result`; raises :class:`emasim.errors.SimulationDiverged` with the
-    time and the state's name when the run blows up.
+    ``advance(k_end)`` runs ticks up to k_end (exclusive) and raises
+    :class:`emasim.errors.SimulationDiverged` with the time and the state's name on a blow-up;
+    ``run.x`` is the plant state in between (a co-simulation master reads and feeds it).
     """
-    n = setup.n_ticks
-    run = setup.start()
-    status = np.zeros(3, dtype=np.int64)
-    chunk = max(1, n // 50)
-    start = time.perf_counter()
-    for k0 in range(0, n, chunk):
+
+    def __init__(self, setup):
+        self.setup = setup
+        self.run = setup.start()
+        self.status = np.zeros(3, dtype=np.int64)
+        self.tick = 0
+        self.wall_s = 0.0
+
+    def advance(self, k_end: int) -> None:
+        setup, run = self.setup, self.run
+        start = time.perf_counter()
         run_ticks(
-            k0,
-            min(n, k0 + chunk),
+            self.tick,
+            k_end,
             setup.substeps,
             setup.sample_period_s,
             run.x,
@@ -346,11 +351,29 @@ def simulate(setup, progress=None):
             setup.limits,
             setup.record_every,
             run.trace,
-            status,
+            self.status,
         )
-        if status[0] != OK:
-            raise SimulationDiverged(_divergence_message(setup, status))
+        self.wall_s += time.perf_counter() - start
+        if self.status[0] != OK:
+            raise SimulationDiverged(_divergence_message(setup, self.status))
+        self.tick = k_end
+
+    def result(self) -> Result:
+        return Result(TRACE_COLUMNS, self.run.trace, meta={"simulation_wall_s": self.wall_s})
+
+
+def simulate(setup, progress=None):
+    """Run ``setup`` (a :class:`emasim.sim.setup.Setup`) on the compiled engine.
+
+    progress, if given, is called with the fraction done after each chunk of ticks. Returns a
+    :class:`emasim.sim.result.Result`; raises :class:`emasim.errors.SimulationDiverged` with the
+    time and the state's name when the run blows up.
+    """
+    n = setup.n_ticks
+    engine = EngineRun(setup)
+    chunk = max(1, n // 50)
+    for k0 in range(0, n, chunk):
+        engine.advance(min(n, k0 + chunk))
         if progress is not None:
-            progress(min(n, k0 + chunk) / n)
-    wall = time.perf_counter() - start
-    return Result(TRACE_COLUMNS, run.trace, meta={"simulation_wall_s": wall})
+            progress(engine.tick / n)
+    return engine.result()

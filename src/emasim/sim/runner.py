@@ -7,6 +7,7 @@ import numba
 
 from .. import __version__
 from ..analysis.report import run_metrics
+from .cosim import cosimulate
 from .engine import simulate
 from .result import Comparison, Result
 
@@ -31,7 +32,10 @@ def run_scenario(scenario, progress=None) -> Result:
     The Result carries the fully resolved scenario (so the run can be repeated exactly), the
     metadata (package version, seed, wall time of the simulation alone) and the metrics.
     """
-    result = simulate(scenario.setup(), progress=progress)
+    if scenario.solver.communication_step_s is not None:
+        result = cosimulate(scenario, scenario.solver.communication_step_s)
+    else:
+        result = simulate(scenario.setup(), progress=progress)
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
     result.meta = _meta(scenario, result.meta["simulation_wall_s"])
     result.metrics = run_metrics(result)

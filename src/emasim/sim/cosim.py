@@ -1,0 +1,90 @@
+"""Co-simulation of the drive and the linkage, loosely coupled at a communication step.
+
+The paper coupled SIMULINK (drive and controllers) and ADAMS (the mechanism) this way. Every
+communication step Tc:
+
+1. the drive (the compiled engine, rod alone as its load) runs over [t, t + Tc] with the rod
+   force the mechanism returned at t held;
+2. the mechanism (emasim.sim.mechanism) runs over the same interval with its rod driven at the
+   drive's mean rod velocity, (s(t + Tc) - s(t)) / Tc, so both sides agree on the rod
+   position at every communication point;
+3. the mechanism returns the rudder angle and the rod's load force.
+
+The force reaches the drive one communication step late, which is what limits this scheme. In
+the compiled loop the two are solved together (plant.actuator with the linkage): the reference
+that co-simulation results are measured against as Tc grows.
+"""
+
+import time
+
+import numpy as np
+
+from ..errors import InputError
+from ..plant import actuator as A
+from ..plant import linkage as L
+from ..signals import Constant, encode
+from .engine import EngineRun
+from .mechanism import advance
+
+ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
+
+
+def cosimulate(scenario, communication_step_s: float):
+    """Run a scenario whose plant has the linkage as a drive/mechanism co-simulation.
+
+    Returns the drive's Result with the rudder angle and the linkage states replaced by the
+    mechanism's, held between communication points.
+    """
+    plant = scenario.plant
+    if plant.linkage is None:
+        raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
+    if scenario.load.rod_force_N or scenario.load.rudder_torque_Nm:
+        raise InputError("co-simulation takes only motor_torque_Nm loads")
+    linked = scenario.setup()
+    ts = linked.sample_period_s
+    ticks = round(communication_step_s / ts)
+    if ticks < 1 or abs(ticks * ts - communication_step_s) > 1e-9 * communication_step_s:
+        raise InputError(
+            f"solver.communication_step_s ({communication_step_s:g} s) must be a whole multiple "
+            f"of solver.sample_period_s ({ts:g} s)"
+        )
+    drive_plant = plant.model_copy(update={"linkage": None})
+    rod_force = encode([Constant(value=0.0)])
+    drive = EngineRun(
+        linked.with_(
+            plant=_rod_only(drive_plant.pack(), plant.linkage.rod_mass_kg),
+            rod_load=rod_force,
+            x0=drive_plant.initial_state(),
+        )
+    )
+    q = plant.linkage.pack()
+    y = linked.x0[A.X_LINK :].copy()
+    hinges = np.zeros((L.N_HINGES, 2))
+    n = linked.n_ticks
+    held = np.zeros((n + 1, L.N_LINK))
+    start = time.perf_counter()
+    for k0 in range(0, n, ticks):
+        k1 = min(n, k0 + ticks)
+        s0 = drive.run.x[A.X_XL]
+        drive.advance(k1)
+        held[k0:k1] = y  # what the drive saw of the mechanism over this step
+        s1 = drive.run.x[A.X_XL]
+        span = (k1 - k0) * ts
+        substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
+        axial = advance(y, s0, (s1 - s0) / span, span, substeps, 0.0, q, hinges)
+        rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
+    result = drive.result()
+    result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
+    rows = np.arange(result.data.shape[0]) * linked.record_every
+    for i, name in enumerate(L.LINK_STATE_NAMES):
+        result.data[:, result.columns.index(name)] = held[rows, i]
+    result.data[:, result.columns.index("rudder_angle_rad")] = held[rows, L.TD]
+    result.meta["communication_step_s"] = communication_step_s
+    return result
+
+
+def _rod_only(packed: np.ndarray, rod_mass_kg: float) -> np.ndarray:
+    """The drive's parameters with the rod alone as its load (the mechanism carries the rest)."""
+    packed = packed.copy()
+    packed[A.P_ML] = rod_mass_kg
+    return packed
