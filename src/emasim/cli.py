@@ -243,5 +243,51 @@ def reproduce(
     )
 
 
+@app.command("export-fmu")
+def export_fmu(
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="FMU file (default emasim-plant.fmu, or emasim-mechanism.fmu)"
+        ),
+    ] = None,
+    preset: Annotated[
+        str, typer.Option(help="plant preset: sea805 (lumped rudder) or sea805-linkage")
+    ] = "sea805-linkage",
+    mechanism: Annotated[
+        bool, typer.Option("--mechanism", help="the linkage alone, its rod velocity driven")
+    ] = False,
+) -> None:
+    """Write the plant (drive + rudder stage or linkage) as an FMI 2.0 co-simulation FMU.
+
+    Inputs ud_V, uq_V, load_torque_Nm, rod_force_N; parameter step_s (sub-step, 1e-5 s).
+
+    Outputs id_A, iq_A, motor_speed_rad_s, actuator_position_m, rudder_angle_rad, and more.
+
+    --mechanism: the linkage alone; input rod_velocity_m_s, outputs rudder_angle_rad, rod_force_N.
+
+    The FMU (pythonfmu) runs emasim in the Python of the tool that loads it: install emasim there.
+    """
+    from .errors import InputError
+    from .plant.presets import PRESETS
+    from .sim.fmi import export_mechanism_fmu, export_plant_fmu
+
+    try:
+        if preset not in PRESETS:
+            raise InputError(
+                f"--preset: unknown preset '{preset}'; choose one of: {', '.join(PRESETS)}"
+            )
+        plant = PRESETS[preset]()
+        if mechanism and plant.linkage is None:
+            raise InputError(f"--preset {preset} has no linkage; --mechanism needs one")
+        export = export_mechanism_fmu if mechanism else export_plant_fmu
+        default = "emasim-mechanism.fmu" if mechanism else "emasim-plant.fmu"
+        path = export(out or Path(default), plant)
+    except EmasimError as err:
+        _fail(err)
+    what = "mechanism" if mechanism else "plant"
+    console.print(f"wrote {path} ({what} FMU, FMI 2.0 co-simulation, {preset})", highlight=False)
+
+
 def main() -> None:  # pragma: no cover - console entry point
     app()

@@ -36,6 +36,21 @@ class Solver(Strict):
         le=0.1,
         description="co-simulate drive and linkage, exchanging at this step (needs a linkage)",
     )
+    mechanism_fmu: str | None = Field(
+        default=None,
+        min_length=1,
+        description="path of an FMI 2.0 co-simulation FMU that replaces the built-in mechanism "
+        "in the co-simulation (inputs rod_velocity_m_s [, rod_position_m], outputs "
+        "rudder_angle_rad, rod_force_N; see emasim.sim.fmi); needs communication_step_s",
+    )
+
+    @model_validator(mode="after")
+    def _fmu_needs_cosimulation(self):
+        if self.mechanism_fmu is not None and self.communication_step_s is None:
+            raise ValueError(
+                "mechanism_fmu is used only in a co-simulation: set communication_step_s too"
+            )
+        return self
 
     @model_validator(mode="after")
     def _whole_multiples(self):

@@ -10,6 +10,10 @@ communication step Tc:
    position at every communication point;
 3. the mechanism returns the rudder angle and the rod's load force.
 
+With ``solver.mechanism_fmu`` set, an FMI 2.0 FMU loaded with fmpy takes the mechanism's place
+(:class:`emasim.sim.fmi.FmuMechanism`): the master sets its rod position and velocity, steps it
+over the same interval and reads back the rudder angle and the rod force.
+
 The force reaches the drive one communication step late, which is what limits this scheme. In
 the compiled loop the two are solved together (plant.actuator with the linkage): the reference
 that co-simulation results are measured against as Tc grows.
@@ -63,16 +67,24 @@ def cosimulate(scenario, communication_step_s: float):
     n = linked.n_ticks
     held = np.zeros((n + 1, L.N_LINK))
     start = time.perf_counter()
-    for k0 in range(0, n, ticks):
-        k1 = min(n, k0 + ticks)
-        s0 = drive.run.x[A.X_XL]
-        drive.advance(k1)
-        held[k0:k1] = y  # what the drive saw of the mechanism over this step
-        s1 = drive.run.x[A.X_XL]
-        span = (k1 - k0) * ts
-        substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
-        axial = advance(y, s0, (s1 - s0) / span, span, substeps, 0.0, q, hinges)
-        rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
+    fmu = _mechanism_fmu(scenario, linked.step_s, drive.run.x[A.X_XL], y)  # None: built in
+    try:
+        for k0 in range(0, n, ticks):
+            k1 = min(n, k0 + ticks)
+            s0 = drive.run.x[A.X_XL]
+            drive.advance(k1)
+            held[k0:k1] = y  # what the drive saw of the mechanism over this step
+            s1 = drive.run.x[A.X_XL]
+            span = (k1 - k0) * ts
+            substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
+            if fmu is None:
+                axial = advance(y, s0, (s1 - s0) / span, span, substeps, 0.0, q, hinges)
+            else:
+                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span)
+            rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
+    finally:
+        if fmu is not None:
+            fmu.close()
     result = drive.result()
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
     rows = np.arange(result.data.shape[0]) * linked.record_every
@@ -81,6 +93,18 @@ def cosimulate(scenario, communication_step_s: float):
     result.data[:, result.columns.index("rudder_angle_rad")] = held[rows, L.TD]
     result.meta["communication_step_s"] = communication_step_s
     return result
+
+
+def _mechanism_fmu(scenario, step_s: float, rod_position_m: float, y: np.ndarray):
+    """The FMU named by solver.mechanism_fmu (emasim.sim.fmi.FmuMechanism), its initial
+    linkage states written into y; None for the built-in mechanism."""
+    if scenario.solver.mechanism_fmu is None:
+        return None
+    from .fmi import FmuMechanism
+
+    fmu = FmuMechanism(scenario.solver.mechanism_fmu, step_s, float(rod_position_m))
+    fmu.read(y)
+    return fmu
 
 
 def _rod_only(packed: np.ndarray, rod_mass_kg: float) -> np.ndarray:

@@ -1,0 +1,93 @@
+"""The plant FMU: emasim's compiled drive and load side (lumped rudder or linkage).
+
+Main script of the FMU that :func:`emasim.sim.fmi.export_plant_fmu` builds. The voltages and
+loads set before ``doStep(t, dt)`` are held over the step, which runs n = round(dt / step_s)
+sub-steps of :func:`emasim.sim.engine.plant_step` (the engine's scheme, exactly). The plant's
+packed parameters and initial state come from the resource ``emasim_plant.json``. emasim must
+be importable in the Python that runs the FMU.
+"""
+
+import numpy as np
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+
+from emasim import __version__
+from emasim.plant import actuator as A
+from emasim.signals import Constant, encode
+from emasim.sim.fmi import (
+    CONSTANT_VALUE,
+    DEFAULT_STEP_S,
+    PLANT_INPUTS,
+    PLANT_OUTPUTS,
+    PLANT_RESOURCE,
+    STEP_PARAMETER,
+    plant_substeps,
+    read_resource,
+    substeps_of,
+)
+
+
+class EmasimPlant(Fmi2Slave):
+    author = "emasim"
+    description = "emasim actuator plant: PMSM, drive train, LuGre, backlash, rudder stage"
+    version = __version__
+    license = "MIT"
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=0.1, step_size=1e-4)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        data = read_resource(self.resources, PLANT_RESOURCE)
+        self.p = np.array(data["plant"], dtype=np.float64)
+        self.x = np.array(data["initial_state"], dtype=np.float64)
+        if self.p.size != A.N_PARAMS or self.x.size != A.N_STATE:
+            raise ValueError(f"{PLANT_RESOURCE} does not fit this emasim ({__version__})")
+        self.work = np.zeros((5, A.N_STATE))
+        self.motor_load = encode([Constant(value=0.0)])
+        self.rod_load = encode([Constant(value=0.0)])
+        self.step_s = DEFAULT_STEP_S
+        self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
+        name, text = STEP_PARAMETER
+        self.register_variable(
+            Real(
+                name,
+                causality=Fmi2Causality.parameter,
+                variability=Fmi2Variability.fixed,
+                description=text,
+            )
+        )
+        for name, text in PLANT_INPUTS:
+            self.register_variable(Real(name, causality=Fmi2Causality.input, description=text))
+        x, p = self.x, self.p
+        getters = {
+            "id_A": lambda: x[A.X_ID],
+            "iq_A": lambda: x[A.X_IQ],
+            "motor_angle_rad": lambda: x[A.X_THETA],
+            "motor_speed_rad_s": lambda: x[A.X_WM],
+            "bristle_state_rad": lambda: x[A.X_Z],
+            "actuator_position_m": lambda: x[A.X_XL],
+            "actuator_velocity_m_s": lambda: x[A.X_VL],
+            "rudder_angle_rad": lambda: A.rudder_angle(x, p),
+            "drivetrain_force_N": lambda: A.backlash_force(x, p),
+            "torque_Nm": lambda: A.motor_torque(x, p),
+        }
+        for name, text in PLANT_OUTPUTS:
+            self.register_variable(
+                Real(name, causality=Fmi2Causality.output, description=text, getter=getters[name])
+            )
+
+    def do_step(self, current_time, step_size):
+        n = substeps_of(step_size, self.step_s)
+        self.motor_load[CONSTANT_VALUE] = self.load_torque_Nm
+        self.rod_load[CONSTANT_VALUE] = self.rod_force_N
+        plant_substeps(
+            current_time,
+            self.x,
+            self.ud_V,
+            self.uq_V,
+            self.p,
+            self.motor_load,
+            self.rod_load,
+            step_size / n,
+            n,
+            self.work,
+        )
+        return bool(np.all(np.isfinite(self.x)))
