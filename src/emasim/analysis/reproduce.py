@@ -37,7 +37,7 @@ EXPERIMENTS = (
     Experiment("cosim-step", "cosim_step", "Figs. 13-14"),
 )
 SWEEP_CLEARANCES_MM = (0.0, 0.01, 0.05, 0.1)
-SWEEP_DURATION_S = 2.0
+SWEEP_DURATION_S = 1.5
 
 # paper table key -> (our metric key, unit); lower magnitude is better for every one of them
 BENCH_STEP_ROWS = {
