@@ -75,11 +75,16 @@ class ContactParams(Strict):
     dynamic_speed_mm_s: float = Field(gt=0, description="Vd > Vs")
 
     @model_validator(mode="after")
-    def _speeds_ordered(self):
+    def _ordered(self):
+        """ADAMS requires Vs < Vd and mu_s >= mu_d (the paper: "Vs < Vd and mu_s > mu_d")."""
         if self.dynamic_speed_mm_s <= self.stiction_speed_mm_s:
             raise ValueError(
                 f"dynamic_speed_mm_s ({self.dynamic_speed_mm_s}) must exceed "
                 f"stiction_speed_mm_s ({self.stiction_speed_mm_s})"
+            )
+        if self.mu_dynamic > self.mu_static:
+            raise ValueError(
+                f"mu_dynamic ({self.mu_dynamic}) must not exceed mu_static ({self.mu_static})"
             )
         return self
 
