@@ -49,10 +49,29 @@ def test_cosimulation_needs_a_linkage_and_a_whole_number_of_ticks():
     with pytest.raises(InputError, match="needs a plant with a linkage"):
         run_scenario(
             load_scenario(
-                "bench-step",
+                "position-step",
                 controllers=["pid"],
                 settings=["duration_s=0.01", "solver.communication_step_s=1e-3"],
             )
         )
     with pytest.raises(InputError, match="whole multiple"):
         cosim(2.5e-4)
+
+
+def test_the_linkage_reports_the_reaction_on_the_drive_and_each_hinge(coupled):
+    """The rod is light (3 kg): over the settled tail its axial balance leaves the linkage's
+    push equal and opposite to the drive-train force, on average. Every hinge carries load."""
+    tail = coupled.t > 0.3
+    push = coupled["linkage_rod_force_N"][tail]
+    drive = coupled["drivetrain_force_N"][tail]
+    assert abs(np.mean(push + drive)) < 0.02 * np.mean(np.abs(drive)) + 1.0
+    for h in (1, 2, 3, 4):
+        assert np.nanmax(coupled[f"hinge{h}_force_N"]) > 0.0
+        assert np.nanmax(coupled[f"hinge{h}_penetration_m"]) > 0.0
+
+
+def test_the_lumped_stage_has_no_hinge_outputs():
+    lumped = run_scenario(
+        load_scenario("speed-step", controllers=["speed=pi"], settings=["duration_s=0.01"])
+    )
+    assert np.isnan(lumped["hinge1_force_N"]).all()

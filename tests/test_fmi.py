@@ -7,7 +7,6 @@ here, in a temporary folder: nothing is downloaded.
 """
 
 import json
-import time
 import zipfile
 
 import numpy as np
@@ -26,7 +25,7 @@ from emasim.plant.motor import limit_voltage
 from emasim.plant.presets import sea805, sea805_linkage
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO, Step, encode, signal_derivatives, signal_value
-from emasim.sim.engine import EngineRun, simulate
+from emasim.sim.engine import simulate
 from emasim.sim.fmi import (
     MECHANISM_INPUTS,
     MECHANISM_OUTPUTS,
@@ -35,7 +34,6 @@ from emasim.sim.fmi import (
     FmuSlave,
     export_mechanism_fmu,
     export_plant_fmu,
-    plant_substeps,
 )
 from emasim.sim.runner import run_scenario
 from emasim.sim.setup import Setup, plant_facts
@@ -127,9 +125,10 @@ def speed_step_setup() -> Setup:
     return setup
 
 
-def closed_loop_through_fmu(path, setup: Setup) -> tuple[dict[str, np.ndarray], dict]:
+def closed_loop_through_fmu(path, setup: Setup) -> dict[str, np.ndarray]:
     """emasim's speed PI and current loop around the plant FMU at Ts, as the engine runs them
-    (control_tick with ideal sensors): traces at every tick, and wall times (s) of the parts."""
+    (control_tick with ideal sensors): traces at every tick. Its speed is measured in
+    benchmarks/bench_fmu.py."""
     n = setup.n_ticks
     h = setup.step_s
     speed = setup.speed
@@ -137,16 +136,12 @@ def closed_loop_through_fmu(path, setup: Setup) -> tuple[dict[str, np.ndarray], 
     meas, ref, out = np.zeros(N_MEAS), np.zeros(N_REF), np.zeros(N_OUT)
     trace = {name: np.empty(n) for name in COMPARED}
     u_max = setup.plant[A.P_UDC]
-    wall = {"do_step": 0.0, "set_get": 0.0, "total": 0.0}
     with FmuSlave(path, start_values={"step_s": h}) as fmu:
         inputs = fmu.refs("ud_V", "uq_V", "load_torque_Nm")
         outputs = fmu.refs(*MEASURED)
-        start = time.perf_counter()
         for k in range(n):
             t = k * TS
-            t0 = time.perf_counter()
             meas[:] = fmu.get_real(outputs)
-            wall["set_get"] += time.perf_counter() - t0
             r, dr, _ = signal_derivatives(setup.reference, t)
             ref[0], ref[1], ref[2] = r, dr, 0.0
             speed.function(speed_state, speed.params, meas, ref, TS, out)
@@ -160,28 +155,15 @@ def closed_loop_through_fmu(path, setup: Setup) -> tuple[dict[str, np.ndarray], 
                 if name in trace:
                     trace[name][k] = value
             trace["ud_V"][k], trace["uq_V"][k] = u_d, u_q
-            t0 = time.perf_counter()
             fmu.set_real(inputs, [u_d, u_q, load])
-            t1 = time.perf_counter()
             fmu.do_step(t, TS)
-            t2 = time.perf_counter()
-            wall["set_get"] += t1 - t0
-            wall["do_step"] += t2 - t1
-        wall["total"] = time.perf_counter() - start
-    return trace, wall
+    return trace
 
 
 @pytest.fixture(scope="module")
 def fmu_and_engine(plant_fmu):
     setup = speed_step_setup()
-    simulate(setup)  # the first runs load the compiled code: time the second ones
-    engine = simulate(setup)
-    timed = EngineRun(setup)
-    timed.advance(setup.n_ticks)  # one call: no per-chunk dispatch in the time per tick
-    engine.meta["one_call_wall_s"] = timed.wall_s
-    closed_loop_through_fmu(plant_fmu, setup)
-    trace, wall = closed_loop_through_fmu(plant_fmu, setup)
-    return setup, engine, trace, wall
+    return setup, simulate(setup), closed_loop_through_fmu(plant_fmu, setup)
 
 
 def test_the_plant_fmu_under_fmpy_matches_the_engine(fmu_and_engine):
@@ -189,7 +171,7 @@ def test_the_plant_fmu_under_fmpy_matches_the_engine(fmu_and_engine):
     to round-off. Measured: identical to the last bit; the bound, 1e-12 of each signal's
     peak, leaves room for a compiler that fuses multiply-adds differently in the two contexts
     (about 1e-16 per operation, grown over 1000 ticks of a well-damped loop)."""
-    setup, engine, trace, _ = fmu_and_engine
+    setup, engine, trace = fmu_and_engine
     speed = engine["motor_speed_rad_s"]
     assert speed[-1] > 0.9 * 300.0 * RPM  # the loop closed: the motor runs at the command
     assert np.ptp(engine["rudder_angle_rad"]) > 1e-3  # and the linkage moved
@@ -197,42 +179,6 @@ def test_the_plant_fmu_under_fmpy_matches_the_engine(fmu_and_engine):
         peak = np.abs(engine[name]).max()
         error = np.abs(trace[name] - engine[name]).max()
         assert error <= 1e-12 * peak, (name, error, peak)
-
-
-def test_report_the_fmu_overhead_per_step(fmu_and_engine, capsys, record_property):
-    """Wall time per control tick: the FMU's doStep (10 sub-steps of the linkage plant), the
-    same sub-steps called from Python without FMI, and the compiled engine. No timing is
-    asserted; the numbers are printed and recorded."""
-    setup, engine, trace, wall = fmu_and_engine
-    n = setup.n_ticks
-    x = setup.x0.copy()
-    work = np.zeros((5, A.N_STATE))
-    start = time.perf_counter()
-    for k in range(n):  # the FMU's work without FMI: the same sub-steps, the same voltages
-        u_d, u_q = trace["ud_V"][k], trace["uq_V"][k]
-        plant_substeps(
-            k * TS, x, u_d, u_q, setup.plant, setup.motor_load, ZERO, setup.step_s, SUBSTEPS, work
-        )
-    direct = (time.perf_counter() - start) / n
-    per_tick = {
-        "fmu_do_step_us": 1e6 * wall["do_step"] / n,
-        "fmu_set_get_us": 1e6 * wall["set_get"] / n,
-        "fmu_closed_loop_us": 1e6 * wall["total"] / n,
-        "python_substeps_us": 1e6 * direct,
-        "engine_tick_us": 1e6 * engine.meta["one_call_wall_s"] / n,
-    }
-    per_tick["fmi_overhead_us"] = per_tick["fmu_do_step_us"] - per_tick["python_substeps_us"]
-    per_tick["fmu_step_over_engine_tick"] = per_tick["fmu_do_step_us"] / per_tick["engine_tick_us"]
-    per_tick["closed_loop_over_engine"] = (
-        per_tick["fmu_closed_loop_us"] / per_tick["engine_tick_us"]
-    )
-    for key, value in per_tick.items():
-        record_property(key, round(value, 3))
-    with capsys.disabled():
-        print("\nFMU overhead per control tick (linkage plant, 10 sub-steps):")
-        for key, value in per_tick.items():
-            print(f"  {key:28s} {value:9.2f}")
-    assert all(np.isfinite(v) and v > -1e3 for v in per_tick.values())
 
 
 def cosim_step(*settings):

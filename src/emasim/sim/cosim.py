@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..plant import actuator as A
 from ..plant import linkage as L
 from ..signals import Constant, encode
-from .engine import EngineRun
+from .engine import LINKAGE_COLUMNS, EngineRun, linkage_outputs
 from .mechanism import advance
 
 ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
@@ -91,6 +91,7 @@ def cosimulate(scenario, communication_step_s: float):
     for i, name in enumerate(L.LINK_STATE_NAMES):
         result.data[:, result.columns.index(name)] = held[rows, i]
     result.data[:, result.columns.index("rudder_angle_rad")] = held[rows, L.TD]
+    _mechanism_outputs(result, held[rows], linked.plant)
     result.meta["communication_step_s"] = communication_step_s
     return result
 
@@ -105,6 +106,16 @@ def _mechanism_fmu(scenario, step_s: float, rod_position_m: float, y: np.ndarray
     fmu = FmuMechanism(scenario.solver.mechanism_fmu, step_s, float(rod_position_m))
     fmu.read(y)
     return fmu
+
+
+def _mechanism_outputs(result, linkage_states: np.ndarray, packed: np.ndarray) -> None:
+    """Fill the rod force and hinge columns from the mechanism states held at each row."""
+    first = result.columns.index(LINKAGE_COLUMNS[0])
+    x = np.zeros(A.N_STATE)
+    position, velocity = result["actuator_position_m"], result["actuator_velocity_m_s"]
+    for i, y in enumerate(linkage_states):
+        x[A.X_XL], x[A.X_VL], x[A.X_LINK :] = position[i], velocity[i], y
+        linkage_outputs(x, packed, result.data[i, first : first + len(LINKAGE_COLUMNS)])
 
 
 def _rod_only(packed: np.ndarray, rod_mass_kg: float) -> np.ndarray:

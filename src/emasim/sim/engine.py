@@ -23,6 +23,7 @@ from ..control.slot import CONTROLLER_TYPE
 from ..errors import SimulationDiverged
 from ..interface import M_ID, M_IQ, M_POSITION, M_SPEED, N_MEAS, N_OUT, N_REF, O_RATE, O_VALUE
 from ..plant import actuator as A
+from ..plant import linkage as L
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
@@ -33,6 +34,13 @@ LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (
 LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
 
 # trace columns: time, the plant state, then the signals below
+# the linkage's push on the rod along its axis, and each hinge's normal force and penetration
+# (NaN with the lumped rudder stage)
+LINKAGE_COLUMNS = (
+    "linkage_rod_force_N",
+    *(f"hinge{h}_force_N" for h in (1, 2, 3, 4)),
+    *(f"hinge{h}_penetration_m" for h in (1, 2, 3, 4)),
+)
 EXTRA_COLUMNS = (
     "speed_ref_rad_s",
     "iq_ref_A",
@@ -47,6 +55,7 @@ EXTRA_COLUMNS = (
     "measured_speed_rad_s",
     "measured_position_m",
     "rudder_angle_rad",
+    *LINKAGE_COLUMNS,
 )
 TRACE_COLUMNS = ("t_s", *A.STATE_NAMES, *EXTRA_COLUMNS)
 C_STATE = 1
@@ -173,6 +182,21 @@ def record(row, t, x, p, motor_load, rod_load, u_d, u_q, speed_ref, iq_ref, posi
     row[e + 10] = meas[M_SPEED]
     row[e + 11] = meas[M_POSITION]
     row[e + 12] = A.rudder_angle(x, p)
+    linkage_outputs(x, p, row[e + 13 : e + 13 + len(LINKAGE_COLUMNS)])
+
+
+@nb.njit(cache=True, error_model="numpy")
+def linkage_outputs(x, p, out):
+    """Rod force and hinge normal forces and penetrations (LINKAGE_COLUMNS) of state x."""
+    if p[A.P_LOAD_MODEL] != A.LOAD_LINKAGE:
+        out[:] = np.nan
+        return
+    hinges = np.empty((L.N_HINGES, 2))
+    rates = np.empty(L.N_LINK)
+    out[0] = L.linkage_rhs(x[A.X_LINK :], x[A.X_XL], x[A.X_VL], 0.0, p[A.P_LINK :], rates, hinges)
+    for h in range(L.N_HINGES):  # hinge order in linkage.py: H1, H2, H3, H4 = 0..3
+        out[1 + h] = hinges[h, 1]
+        out[1 + L.N_HINGES + h] = hinges[h, 0]
 
 
 F8 = types.float64
