@@ -83,6 +83,25 @@ MECHANISM_OUTPUTS = (
 )
 STEP_PARAMETER = ("step_s", "integration sub-step (s); a step dt takes round(dt / step_s) of them")
 
+
+def register_step_and_inputs(slave, inputs) -> None:
+    """Register the ``step_s`` parameter and the (name, description) inputs of an FMU slave;
+    the slave holds each as an attribute of the same name."""
+    from pythonfmu import Fmi2Causality, Fmi2Variability, Real
+
+    name, text = STEP_PARAMETER
+    slave.register_variable(
+        Real(
+            name,
+            causality=Fmi2Causality.parameter,
+            variability=Fmi2Variability.fixed,
+            description=text,
+        )
+    )
+    for name, text in inputs:
+        slave.register_variable(Real(name, causality=Fmi2Causality.input, description=text))
+
+
 CONSTANT_VALUE = 3  # index of the value in a one-term constant signal (emasim.signals.encode)
 
 

@@ -11,7 +11,7 @@ runs the FMU.
 """
 
 import numpy as np
-from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 
 from emasim import __version__
 from emasim.plant import linkage as L
@@ -20,8 +20,8 @@ from emasim.sim.fmi import (
     MECHANISM_INPUTS,
     MECHANISM_OUTPUTS,
     MECHANISM_RESOURCE,
-    STEP_PARAMETER,
     read_resource,
+    register_step_and_inputs,
     substeps_of,
 )
 from emasim.sim.mechanism import advance
@@ -44,17 +44,7 @@ class EmasimMechanism(Fmi2Slave):
         self.rod_position_m = self.rod_velocity_m_s = self.rudder_torque_Nm = 0.0
         self.y = L.rigid_pose(0.0, self.q)
         self.rod_force_N = 0.0
-        name, text = STEP_PARAMETER
-        self.register_variable(
-            Real(
-                name,
-                causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.fixed,
-                description=text,
-            )
-        )
-        for name, text in MECHANISM_INPUTS:
-            self.register_variable(Real(name, causality=Fmi2Causality.input, description=text))
+        register_step_and_inputs(self, MECHANISM_INPUTS)
         getters = {"rudder_angle_rad": lambda: self.y[L.TD], "rod_force_N": None}
         for i, state in enumerate(L.LINK_STATE_NAMES):
             getters[state] = lambda i=i: self.y[i]

@@ -8,7 +8,7 @@ be importable in the Python that runs the FMU.
 """
 
 import numpy as np
-from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 
 from emasim import __version__
 from emasim.plant import actuator as A
@@ -19,9 +19,9 @@ from emasim.sim.fmi import (
     PLANT_INPUTS,
     PLANT_OUTPUTS,
     PLANT_RESOURCE,
-    STEP_PARAMETER,
     plant_substeps,
     read_resource,
+    register_step_and_inputs,
     substeps_of,
 )
 
@@ -45,17 +45,7 @@ class EmasimPlant(Fmi2Slave):
         self.rod_load = encode([Constant(value=0.0)])
         self.step_s = DEFAULT_STEP_S
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
-        name, text = STEP_PARAMETER
-        self.register_variable(
-            Real(
-                name,
-                causality=Fmi2Causality.parameter,
-                variability=Fmi2Variability.fixed,
-                description=text,
-            )
-        )
-        for name, text in PLANT_INPUTS:
-            self.register_variable(Real(name, causality=Fmi2Causality.input, description=text))
+        register_step_and_inputs(self, PLANT_INPUTS)
         x, p = self.x, self.p
         getters = {
             "id_A": lambda: x[A.X_ID],
