@@ -750,8 +750,9 @@ def test_ideal_pivots_hold_along_a_simulation():
     o, a0 = q[[L.OX, L.OY]], q[[L.A0X, L.A0Y]]
     hole4 = L._local_point(L.H4, False, q)
     for y, s in zip(trace["y"], trace["s"], strict=True):
-        p4 = np.array(L._point(L.BODY_D, *hole4, y, s, 0.0, q))
-        end = np.array(L._point(L.ROD, 0.0, 0.0, y, s, 0.0, q))
+        frames = L._frames(y, s, 0.0, q)
+        p4 = np.array(L._point(frames, L.BODY_D, *hole4))
+        end = np.array(L._point(frames, L.ROD, 0.0, 0.0))
         assert abs(np.linalg.norm(p4 - o) - q[L.R4]) < 1e-15
         assert abs(np.linalg.norm(end - a0) - (q[L.L0] + s)) < 2e-15
     assert np.ptp(trace["y"][:, L.TD]) > 0.0 and np.ptp(trace["s"]) > 1e-4

@@ -10,6 +10,25 @@ import numpy as np  # noqa: E402
 RPM_PER_RAD_S = 30.0 / np.pi
 
 
+MAX_POINTS = 4000  # per plotted line; longer traces are thinned to their min/max envelope
+
+
+def _line(ax, t, y, *style, **kwargs):
+    """ax.plot of a trace, thinned to at most MAX_POINTS by keeping each bucket's minimum and
+    maximum (so oscillations keep their amplitude on the plot)."""
+    t, y = np.asarray(t), np.broadcast_to(np.asarray(y, dtype=float), np.shape(t))
+    if t.size > MAX_POINTS:
+        bucket = -(-t.size // (MAX_POINTS // 2))
+        n = t.size // bucket * bucket
+        blocks = y[:n].reshape(-1, bucket)
+        base = np.arange(0, n, bucket)
+        lo = base + np.nanargmin(np.where(np.isnan(blocks), np.inf, blocks), axis=1)
+        hi = base + np.nanargmax(np.where(np.isnan(blocks), -np.inf, blocks), axis=1)
+        keep = np.unique(np.concatenate([lo, hi, np.arange(n, t.size)]))
+        t, y = t[keep], y[keep]
+    return ax.plot(t, y, *style, **kwargs)
+
+
 def plot_result(result, title: str | None = None):
     """Three stacked panels sharing time: the controlled output and its reference; in a position
     run the motor speed and its command, in a speed run the torques on the shaft; the q-axis
@@ -18,26 +37,31 @@ def plot_result(result, title: str | None = None):
     position_run = bool(np.isfinite(result["position_ref_m"]).any())
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
     if position_run:
-        axes[0].plot(t, 1e3 * result["position_ref_m"], "k--", lw=1, label="reference")
-        axes[0].plot(t, 1e3 * result["actuator_position_m"], lw=1.4, label="rod position")
+        _line(axes[0], t, 1e3 * result["position_ref_m"], "k--", lw=1, label="reference")
+        _line(axes[0], t, 1e3 * result["actuator_position_m"], lw=1.4, label="rod position")
         axes[0].set_ylabel("position (mm)")
     else:
-        axes[0].plot(t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=1, label="reference")
-        axes[0].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.4, label="motor speed")
+        _line(axes[0], t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=1, label="reference")
+        _line(axes[0], t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.4, label="motor speed")
         axes[0].set_ylabel("speed (rpm)")
     if position_run:
-        axes[1].plot(
-            t, RPM_PER_RAD_S * result["speed_ref_rad_s"], "k--", lw=0.8, label="speed command"
+        _line(
+            axes[1],
+            t,
+            RPM_PER_RAD_S * result["speed_ref_rad_s"],
+            "k--",
+            lw=0.8,
+            label="speed command",
         )
-        axes[1].plot(t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.0, label="motor speed")
+        _line(axes[1], t, RPM_PER_RAD_S * result["motor_speed_rad_s"], lw=1.0, label="motor speed")
         axes[1].set_ylabel("speed (rpm)")
     else:
-        axes[1].plot(t, result["torque_Nm"], lw=1.0, label="electromagnetic")
-        axes[1].plot(t, result["load_torque_Nm"], lw=1.0, label="load (motor shaft)")
-        axes[1].plot(t, result["friction_torque_Nm"], lw=1.0, label="friction")
+        _line(axes[1], t, result["torque_Nm"], lw=1.0, label="electromagnetic")
+        _line(axes[1], t, result["load_torque_Nm"], lw=1.0, label="load (motor shaft)")
+        _line(axes[1], t, result["friction_torque_Nm"], lw=1.0, label="friction")
         axes[1].set_ylabel("torque (N·m)")
-    axes[2].plot(t, result["iq_ref_A"], "k--", lw=0.8, label="iq command")
-    axes[2].plot(t, result["iq_A"], lw=1.0, label="iq")
+    _line(axes[2], t, result["iq_ref_A"], "k--", lw=0.8, label="iq command")
+    _line(axes[2], t, result["iq_A"], lw=1.0, label="iq")
     axes[2].set_ylabel("current (A)")
     axes[2].set_xlabel("time (s)")
     for ax in axes:
@@ -69,11 +93,11 @@ def plot_comparison(results: dict, title: str | None = None):
         reference = rudder_traces(first)[1] / scale
     else:
         reference = first[ref_column]
-    axes[0].plot(first.t, scale * reference, "k--", lw=1, label="reference")
+    _line(axes[0], first.t, scale * reference, "k--", lw=1, label="reference")
     for name, result in results.items():
-        axes[0].plot(result.t, scale * result[column], lw=1.2, label=name)
-        axes[1].plot(result.t, scale * (reference - result[column]), lw=1.0, label=name)
-        axes[2].plot(result.t, result["iq_A"], lw=0.8, label=name)
+        _line(axes[0], result.t, scale * result[column], lw=1.2, label=name)
+        _line(axes[1], result.t, scale * (reference - result[column]), lw=1.0, label=name)
+        _line(axes[2], result.t, result["iq_A"], lw=0.8, label=name)
     axes[0].set_ylabel(label)
     axes[1].set_ylabel(f"error, {label}")
     # symmetric log: the approach and the small steady-state error both stay visible
@@ -111,10 +135,10 @@ def plot_bench(results: dict, title: str | None = None):
     )
     for col, (name, result) in enumerate(results.items()):
         angle, reference, rate, reference_rate = rudder_traces(result)
-        axes[0, col].plot(result.t, reference, "k--", lw=1, label="command")
-        axes[0, col].plot(result.t, angle, lw=1.2, label="rudder angle")
-        axes[1, col].plot(result.t, reference_rate, "k--", lw=1, label="command rate")
-        axes[1, col].plot(result.t, rate, lw=0.8, label="rudder rate")
+        _line(axes[0, col], result.t, reference, "k--", lw=1, label="command")
+        _line(axes[0, col], result.t, angle, lw=1.2, label="rudder angle")
+        _line(axes[1, col], result.t, reference_rate, "k--", lw=1, label="command rate")
+        _line(axes[1, col], result.t, rate, lw=0.8, label="rudder rate")
         axes[0, col].set_title(name)
         axes[0, col].set_ylabel("angle (deg)")
         axes[1, col].set_ylabel("angular velocity (deg/s)")

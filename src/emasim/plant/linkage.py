@@ -105,12 +105,6 @@ N_HINGES = 4
 H1, H2, H3, H4 = range(4)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
-def _rotate(x, y, angle):
-    c, s = math.cos(angle), math.sin(angle)
-    return c * x - s * y, s * x + c * y
-
-
 @nb.njit(cache=True, error_model="numpy")
 def _local_point(hinge, on_pin, q):
     """Body-frame coordinates of a hinge's pin (on_pin) or hole on its body."""
@@ -135,60 +129,51 @@ def _hinge_bodies(hinge):
     return BODY_C, BODY_D
 
 
+# columns of the body frame table built by _frames
+F_RX, F_RY, F_VX, F_VY, F_COS, F_SIN, F_OMEGA = range(7)
+
+
 @nb.njit(cache=True, error_model="numpy")
-def _frame(body, y, s, s_dot, q):
-    """Reference point, its velocity, orientation and angular rate of a body:
-    (rx, ry, vx, vy, angle, omega). The rod's frame sits at the rod end, turning with phi."""
+def _frames(y, s, s_dot, q):
+    """Frame of every body, one row each: reference point, its velocity, cos and sin of the
+    orientation, angular rate. The rod's frame sits at the rod end, turning with phi; the
+    ground's is the identity at the origin (its points are given in world coordinates)."""
+    f = np.zeros((5, 7))
     v = y[N_POS:]
-    if body == GROUND:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if body == ROD:
-        phi, w = y[PHI], v[PHI]
-        r = q[L0] + s
-        ux, uy = math.cos(phi), math.sin(phi)
-        return (
-            q[A0X] + r * ux,
-            q[A0Y] + r * uy,
-            s_dot * ux - r * w * uy,
-            s_dot * uy + r * w * ux,
-            phi,
-            w,
-        )
-    if body == BODY_B:
-        return y[XB], y[YB], v[XB], v[YB], y[TB], v[TB]
-    if body == BODY_C:
-        return y[XC], y[YC], v[XC], v[YC], y[TC], v[TC]
-    return q[OX], q[OY], 0.0, 0.0, y[TD], v[TD]
+    f[GROUND, F_COS] = 1.0
+    phi, w = y[PHI], v[PHI]
+    r = q[L0] + s
+    ux, uy = math.cos(phi), math.sin(phi)
+    f[ROD] = (q[A0X] + r * ux, q[A0Y] + r * uy, s_dot * ux - r * w * uy, s_dot * uy + r * w * ux,
+              ux, uy, w)
+    f[BODY_B] = (y[XB], y[YB], v[XB], v[YB], math.cos(y[TB]), math.sin(y[TB]), v[TB])
+    f[BODY_C] = (y[XC], y[YC], v[XC], v[YC], math.cos(y[TC]), math.sin(y[TC]), v[TC])
+    f[BODY_D] = (q[OX], q[OY], 0.0, 0.0, math.cos(y[TD]), math.sin(y[TD]), v[TD])
+    return f
 
 
-@nb.njit(cache=True, error_model="numpy")
-def _point(body, lx, ly, y, s, s_dot, q):
-    """World position of a body-fixed point (local lx, ly); the ground's points are absolute."""
-    rx, ry, _, _, angle, _ = _frame(body, y, s, s_dot, q)
-    if body == GROUND:
-        return lx, ly
-    dx, dy = _rotate(lx, ly, angle)
-    return rx + dx, ry + dy
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def _point(f, body, lx, ly):
+    """World position of a body-fixed point (local lx, ly)."""
+    c, s = f[body, F_COS], f[body, F_SIN]
+    return f[body, F_RX] + c * lx - s * ly, f[body, F_RY] + s * lx + c * ly
 
 
-@nb.njit(cache=True, error_model="numpy")
-def _velocity_at(body, px, py, y, s, s_dot, q):
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def _velocity_at(f, body, px, py):
     """Velocity of the material point of ``body`` that is at (px, py)."""
-    rx, ry, vx, vy, _, w = _frame(body, y, s, s_dot, q)
-    return vx - w * (py - ry), vy + w * (px - rx)
+    w = f[body, F_OMEGA]
+    return f[body, F_VX] - w * (py - f[body, F_RY]), f[body, F_VY] + w * (px - f[body, F_RX])
 
 
 @nb.njit(cache=True, error_model="numpy")
-def hinge_contact(hinge, y, s, s_dot, q):
-    """Contact of one hinge: (Fx, Fy) on the pin body at (px, py), penetration (m), |Fn| (N).
-
-    Returns (fx, fy, px, py, delta, fn); zero force when the pin is clear of the hole wall.
-    """
+def _contact(hinge, f, q):
+    """Contact of one hinge from the body frames (see hinge_contact)."""
     pin_body, hole_body = _hinge_bodies(hinge)
     lx, ly = _local_point(hinge, True, q)
-    pin_x, pin_y = _point(pin_body, lx, ly, y, s, s_dot, q)
+    pin_x, pin_y = _point(f, pin_body, lx, ly)
     lx, ly = _local_point(hinge, False, q)
-    hole_x, hole_y = _point(hole_body, lx, ly, y, s, s_dot, q)
+    hole_x, hole_y = _point(f, hole_body, lx, ly)
     dx, dy = pin_x - hole_x, pin_y - hole_y
     dist = math.sqrt(dx * dx + dy * dy)
     delta = dist - q[CLEAR + hinge]
@@ -196,8 +181,8 @@ def hinge_contact(hinge, y, s, s_dot, q):
         return 0.0, 0.0, pin_x, pin_y, delta, 0.0
     nx, ny = dx / dist, dy / dist
     px, py = pin_x + q[R_PIN] * nx, pin_y + q[R_PIN] * ny
-    vpx, vpy = _velocity_at(pin_body, px, py, y, s, s_dot, q)
-    vhx, vhy = _velocity_at(hole_body, px, py, y, s, s_dot, q)
+    vpx, vpy = _velocity_at(f, pin_body, px, py)
+    vhx, vhy = _velocity_at(f, hole_body, px, py)
     wx, wy = vpx - vhx, vpy - vhy
     c = q[CONTACT:]
     fn = contact.normal_force(delta, nx * wx + ny * wy, c)
@@ -206,7 +191,16 @@ def hinge_contact(hinge, y, s, s_dot, q):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _apply(body, fx, fy, px, py, y, s, s_dot, q, gen):
+def hinge_contact(hinge, y, s, s_dot, q):
+    """Contact of one hinge: (Fx, Fy) on the pin body at (px, py), penetration (m), |Fn| (N).
+
+    Returns (fx, fy, px, py, delta, fn); zero force when the pin is clear of the hole wall.
+    """
+    return _contact(hinge, _frames(y, s, s_dot, q), q)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _apply(body, fx, fy, px, py, f, q, gen):
     """Add a force at a point to the generalised forces of a body.
 
     gen layout: [tau about A0, Fx_B, Fy_B, M_B, Fx_C, Fy_C, M_C, M_D, F_axial_rod]."""
@@ -214,10 +208,9 @@ def _apply(body, fx, fy, px, py, y, s, s_dot, q, gen):
         return
     if body == ROD:
         gen[0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
-        gen[8] += math.cos(y[PHI]) * fx + math.sin(y[PHI]) * fy
+        gen[8] += f[ROD, F_COS] * fx + f[ROD, F_SIN] * fy
         return
-    rx, ry, _, _, _, _ = _frame(body, y, s, s_dot, q)
-    moment = (px - rx) * fy - (py - ry) * fx
+    moment = (px - f[body, F_RX]) * fy - (py - f[body, F_RY]) * fx
     if body == BODY_B:
         gen[1] += fx
         gen[2] += fy
@@ -238,16 +231,17 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     torque on the rudder shaft (N m); q: linkage parameters. ``hinges`` (4 x 2) receives each
     hinge's penetration (m) and normal force (N).
     """
+    f = _frames(y, s, s_dot, q)
     gen = np.zeros(9)
     for h in range(N_HINGES):
-        fx, fy, px, py, delta, fn = hinge_contact(h, y, s, s_dot, q)
+        fx, fy, px, py, delta, fn = _contact(h, f, q)
         hinges[h, 0] = delta
         hinges[h, 1] = fn
         if fn == 0.0:
             continue
         pin_body, hole_body = _hinge_bodies(h)
-        _apply(pin_body, fx, fy, px, py, y, s, s_dot, q, gen)
-        _apply(hole_body, -fx, -fy, px, py, y, s, s_dot, q, gen)
+        _apply(pin_body, fx, fy, px, py, f, q, gen)
+        _apply(hole_body, -fx, -fy, px, py, f, q, gen)
     v = y[N_POS:]
     r = q[L0] + s
     for i in range(N_POS):
