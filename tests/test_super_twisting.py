@@ -208,10 +208,10 @@ def test_classic_st_converges_in_finite_time_growing_like_sqrt_of_x1_0():
     x1_0 = np.array([100.0, 400.0, 1600.0, 6400.0])
     times = []
     for x0 in x1_0:
-        duration = 0.3 * math.sqrt(x0) + 2.0
-        run = simulate(ctrl, h, duration, x1_0=x0, disturbance=SINE)
+        horizon = 0.3 * math.sqrt(x0) + 2.0  # simulated seconds
+        run = simulate(ctrl, h, horizon, x1_0=x0, disturbance=SINE)
         settle = run.settling_time(eps)
-        assert settle <= duration - 2.0, f"x1(0)={x0}: not settled for 2 s (T={settle})"
+        assert settle <= horizon - 2.0, f"x1(0)={x0}: not settled for 2 s (T={settle})"
         times.append(settle)
     times = np.array(times)
     slope = np.polyfit(np.log(x1_0), np.log(times), 1)[0]
