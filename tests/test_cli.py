@@ -51,7 +51,8 @@ def test_run_writes_the_whole_folder(run_folder):
         assert column in frame.columns
     meta = json.loads((out / "meta.json").read_text())
     assert meta["emasim_version"] and meta["seed"] == 0
-    assert {"simulation_wall_s", "real_time_factor", "created_utc"} <= set(meta)
+    recorded = {"simulation_wall_s", "real_time_factor", "created_utc"}
+    assert recorded <= set(meta)
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["settling_time_s"] > 0 and "settling_time_s" in output
     assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
