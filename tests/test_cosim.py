@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from emasim.errors import InputError
+from emasim.plant.linkage import rudder_angle_of_extension
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.runner import run_scenario
 
@@ -75,3 +76,22 @@ def test_the_lumped_stage_has_no_hinge_outputs():
         load_scenario("speed-step", controllers=["speed=pi"], settings=["duration_s=0.01"])
     )
     assert np.isnan(lumped["hinge1_force_N"]).all()
+
+
+@pytest.mark.parametrize("extra", [[], ["solver.communication_step_s=1e-3"]])
+def test_a_rudder_load_reaches_the_drive_by_virtual_work(extra):
+    """A load torque T on the rudder shaft (the bench's load motor) must be held, at rest, by a
+    rod force F = T dtheta/ds (virtual work through the rigid kinematics), coupled or
+    co-simulated alike."""
+    torque = 200.0
+    settings = ["duration_s=1.0", f'load.rudder_torque_Nm=[{{type="constant", value={torque}}}]']
+    scenario = load_scenario("cosim-step", controllers=["pid"], settings=[*settings, *extra])
+    result = run_scenario(scenario)
+    tail = result.t > 0.6
+    s = float(np.mean(result["actuator_position_m"][tail]))
+    angles = rudder_angle_of_extension(
+        np.array([s - 1e-6, s + 1e-6]), scenario.plant.linkage.pack()
+    )
+    expected = torque * (angles[1] - angles[0]) / 2e-6
+    assert np.mean(result["drivetrain_force_N"][tail]) == pytest.approx(expected, rel=0.05)
+    assert abs(np.degrees(np.mean(result["rudder_angle_rad"][tail])) - 10.0) < 0.2

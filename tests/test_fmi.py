@@ -80,7 +80,7 @@ def test_the_plant_fmu_describes_its_variables_and_carries_the_plant(plant_fmu):
     assert md.fmiVersion == "2.0" and md.coSimulation is not None
     kinds = causalities(plant_fmu)
     assert {name: kinds[name] for name, _ in PLANT_INPUTS} == dict.fromkeys(
-        ("ud_V", "uq_V", "load_torque_Nm", "rod_force_N"), "input"
+        ("ud_V", "uq_V", "load_torque_Nm", "rod_force_N", "rudder_torque_Nm"), "input"
     )
     for name, _ in PLANT_OUTPUTS:
         assert kinds[name] == "output", name

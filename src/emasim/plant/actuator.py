@@ -136,11 +136,13 @@ def motor_torque(x, p):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def rhs(x, u_d, u_q, t_load, f_load, p, dx):
+def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
     """Write dx/dt of the actuator into ``dx``.
 
     x state; (u_d, u_q) applied stator voltages (V); t_load the load torque TL on the motor
-    shaft (N*m); f_load the external force F_L on the rod (N); p parameters.
+    shaft (N*m); f_load the external force F_L on the rod (N); t_rudder the load torque on the
+    linkage's rudder shaft (N*m, opposing positive deflection; the lumped stage takes its rudder
+    load as part of f_load); p parameters.
     """
     w = x[X_WM]
     w_e = p[P_NP] * w
@@ -163,7 +165,7 @@ def rhs(x, u_d, u_q, t_load, f_load, p, dx):
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
         q = p[P_LINK:]
         hinges = np.empty((L.N_HINGES, 2))
-        f_axial = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], 0.0, q, dx[X_LINK:], hinges)
+        f_axial = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], -t_rudder, q, dx[X_LINK:], hinges)
         swing = x[X_LINK + L.N_POS + L.PHI]
         centripetal = (q[L.L0] + x[X_XL]) * swing * swing
         dx[X_VL] = (f_b + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal

@@ -144,8 +144,15 @@ def _frames(y, s, s_dot, q):
     phi, w = y[PHI], v[PHI]
     r = q[L0] + s
     ux, uy = math.cos(phi), math.sin(phi)
-    f[ROD] = (q[A0X] + r * ux, q[A0Y] + r * uy, s_dot * ux - r * w * uy, s_dot * uy + r * w * ux,
-              ux, uy, w)
+    f[ROD] = (
+        q[A0X] + r * ux,
+        q[A0Y] + r * uy,
+        s_dot * ux - r * w * uy,
+        s_dot * uy + r * w * ux,
+        ux,
+        uy,
+        w,
+    )
     f[BODY_B] = (y[XB], y[YB], v[XB], v[YB], math.cos(y[TB]), math.sin(y[TB]), v[TB])
     f[BODY_C] = (y[XC], y[YC], v[XC], v[YC], math.cos(y[TC]), math.sin(y[TC]), v[TC])
     f[BODY_D] = (q[OX], q[OY], 0.0, 0.0, math.cos(y[TD]), math.sin(y[TD]), v[TD])

@@ -20,7 +20,7 @@ from ..plant import actuator as A
 from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..signals import Table, Term, combine, encode, signal_value
+from ..signals import ZERO, Table, Term, combine, encode, signal_value
 from ..sim.setup import Setup, plant_facts
 
 
@@ -126,11 +126,21 @@ class Load(Strict):
     rod_force_N: list[Term] = []
     rudder_torque_Nm: list[Term] = []
 
-    def encode(self, plant: PlantParams) -> tuple[np.ndarray, np.ndarray]:
-        """(motor torque signal in N*m, rod force signal in N); rudder torque / arm = force."""
+    def encode(self, plant: PlantParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(motor torque in N*m, rod force in N, rudder-shaft torque in N*m) signals.
+
+        A rudder torque is a load: positive opposes positive deflection. With the linkage it
+        acts on the rudder shaft; with the lumped stage it reaches the rod as torque / arm.
+        """
+        if plant.linkage is not None:
+            return (
+                encode(self.motor_torque_Nm),
+                encode(self.rod_force_N),
+                encode(self.rudder_torque_Nm),
+            )
         arm_m = plant.load.rudder_arm_mm * MM
         rod = combine(encode(self.rod_force_N), encode(self.rudder_torque_Nm, 1.0 / arm_m))
-        return encode(self.motor_torque_Nm), rod
+        return encode(self.motor_torque_Nm), rod, ZERO
 
 
 class Controllers(Strict):
@@ -248,15 +258,6 @@ class Scenario(Strict):
         return data
 
     @model_validator(mode="after")
-    def _loads_fit_the_plant(self):
-        if self.plant.linkage is not None and self.load.rudder_torque_Nm:
-            raise ValueError(
-                "load.rudder_torque_Nm is not yet applied to the linkage's rudder shaft; "
-                "use it with the lumped rudder stage (plant.preset = 'sea805')"
-            )
-        return self
-
-    @model_validator(mode="after")
     def _loops_match(self):
         loop = self.reference.loop
         _check_loops(self.controllers, loop, "controllers")
@@ -290,7 +291,7 @@ class Scenario(Strict):
         """Compile this scenario into the arrays the engine runs."""
         facts = plant_facts(self.plant)
         ts = self.solver.sample_period_s
-        motor_load, rod_load = self.load.encode(self.plant)
+        motor_load, rod_load, rudder_load = self.load.encode(self.plant)
         c = self.controllers
         stroke_m = self.plant.drivetrain.stroke_mm * MM
         return Setup(
@@ -301,6 +302,7 @@ class Scenario(Strict):
             reference=self.reference.encode(self.plant, self.duration_s),
             motor_load=motor_load,
             rod_load=rod_load,
+            rudder_load=rudder_load,
             speed=c.speed.build(facts, ts),
             position=c.position.build(facts, ts) if c.position is not None else None,
             current_params=c.current.pack(facts)[0],

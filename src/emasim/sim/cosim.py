@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import InputError
 from ..plant import actuator as A
 from ..plant import linkage as L
-from ..signals import Constant, encode
+from ..signals import Constant, encode, signal_value
 from .engine import LINKAGE_COLUMNS, EngineRun, linkage_outputs
 from .mechanism import advance
 
@@ -42,8 +42,8 @@ def cosimulate(scenario, communication_step_s: float):
     plant = scenario.plant
     if plant.linkage is None:
         raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
-    if scenario.load.rod_force_N or scenario.load.rudder_torque_Nm:
-        raise InputError("co-simulation takes only motor_torque_Nm loads")
+    if scenario.load.rod_force_N:
+        raise InputError("co-simulation takes motor_torque_Nm and rudder_torque_Nm loads only")
     linked = scenario.setup()
     ts = linked.sample_period_s
     ticks = round(communication_step_s / ts)
@@ -77,10 +77,12 @@ def cosimulate(scenario, communication_step_s: float):
             s1 = drive.run.x[A.X_XL]
             span = (k1 - k0) * ts
             substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
+            # the rudder load (opposing positive deflection) held at the step's midpoint
+            torque = -signal_value(linked.rudder_load, (k0 * ts) + 0.5 * span)
             if fmu is None:
-                axial = advance(y, s0, (s1 - s0) / span, span, substeps, 0.0, q, hinges)
+                axial = advance(y, s0, (s1 - s0) / span, span, substeps, torque, q, hinges)
             else:
-                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span)
+                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span, torque)
             rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
     finally:
         if fmu is not None:

@@ -55,6 +55,7 @@ EXTRA_COLUMNS = (
     "measured_speed_rad_s",
     "measured_position_m",
     "rudder_angle_rad",
+    "rudder_load_Nm",
     *LINKAGE_COLUMNS,
 )
 TRACE_COLUMNS = ("t_s", *A.STATE_NAMES, *EXTRA_COLUMNS)
@@ -120,7 +121,7 @@ def _stage(xs, x, k, dt, z, n):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, h, work):
+def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     """Advance x by one RK4 sub-step h with the voltages held; work is a (5, N_STATE) scratch.
 
     The bristle state is split off: in the RK4 stages it takes its exact value for the speed
@@ -137,13 +138,14 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, h, work):
     z_half, z_full = A.bristle_half_and_full_step(z0, w0, h, p)
     t_load = signal_value(motor_load, t + 0.5 * h)
     f_load = signal_value(rod_load, t + 0.5 * h)
-    A.rhs(x, u_d, u_q, t_load, f_load, p, k1)
+    r_load = signal_value(rudder_load, t + 0.5 * h)
+    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, k1)
     _stage(xs, x, k1, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, p, k2)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k2)
     _stage(xs, x, k2, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, p, k3)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k3)
     _stage(xs, x, k3, h, z_full, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, p, k4)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k4)
     for i in range(n):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
@@ -163,7 +165,21 @@ def check_state(x, limits, status, tick):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def record(row, t, x, p, motor_load, rod_load, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
+def record(
+    row,
+    t,
+    x,
+    p,
+    motor_load,
+    rod_load,
+    rudder_load,
+    u_d,
+    u_q,
+    speed_ref,
+    iq_ref,
+    position_ref,
+    meas,
+):
     """Write one trace row (layout TRACE_COLUMNS)."""
     row[0] = t
     for i in range(A.N_STATE):
@@ -182,7 +198,8 @@ def record(row, t, x, p, motor_load, rod_load, u_d, u_q, speed_ref, iq_ref, posi
     row[e + 10] = meas[M_SPEED]
     row[e + 11] = meas[M_POSITION]
     row[e + 12] = A.rudder_angle(x, p)
-    linkage_outputs(x, p, row[e + 13 : e + 13 + len(LINKAGE_COLUMNS)])
+    row[e + 13] = signal_value(rudder_load, t)
+    linkage_outputs(x, p, row[e + 14 : e + 14 + len(LINKAGE_COLUMNS)])
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -213,7 +230,8 @@ RUN_SIG = types.void(
     F8A,
     F8A,
     F8A,
-    I8,  # x, p, motor_load, rod_load, ref_sig, loop
+    F8A,
+    I8,  # x, p, motor_load, rod_load, rudder_load, ref_sig, loop
     F8A2,
     F8A,
     I8,  # sensor_table, gap_state, seed
@@ -242,6 +260,7 @@ def run_ticks(
     p,
     motor_load,
     rod_load,
+    rudder_load,
     ref_sig,
     loop,
     sensor_table,
@@ -304,6 +323,7 @@ def run_ticks(
                 p,
                 motor_load,
                 rod_load,
+                rudder_load,
                 u_d,
                 u_q,
                 speed_ref,
@@ -312,7 +332,7 @@ def run_ticks(
                 meas,
             )
         for j in range(substeps):
-            plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, h, work)
+            plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work)
         if not check_state(x, limits, status, k + 1):
             return
 
@@ -359,6 +379,7 @@ class EngineRun:
             setup.plant,
             setup.motor_load,
             setup.rod_load,
+            setup.rudder_load,
             setup.reference,
             run.loop,
             setup.sensors,

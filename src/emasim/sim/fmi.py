@@ -58,6 +58,11 @@ PLANT_INPUTS = (
     ("uq_V", "q-axis stator voltage, held over the step (V)"),
     ("load_torque_Nm", "load torque on the motor shaft, held over the step (N m)"),
     ("rod_force_N", "external force on the rod, positive opposing extension, held (N)"),
+    (
+        "rudder_torque_Nm",
+        "load torque on the linkage's rudder shaft, positive opposing "
+        "positive deflection, held (N m)",
+    ),
 )
 PLANT_OUTPUTS = (
     ("id_A", "d-axis current (A)"),
@@ -106,10 +111,10 @@ CONSTANT_VALUE = 3  # index of the value in a one-term constant signal (emasim.s
 
 
 @nb.njit(cache=True, error_model="numpy")
-def plant_substeps(t, x, u_d, u_q, p, motor_load, rod_load, h, n, work):
+def plant_substeps(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, n, work):
     """n sub-steps of :func:`emasim.sim.engine.plant_step` from t, as the engine runs a tick."""
     for j in range(n):
-        plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, h, work)
+        plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work)
 
 
 def substeps_of(dt: float, step_s: float) -> int:
@@ -336,7 +341,9 @@ class FmuMechanism:
     ``rod_force_N`` (the linkage's axial force on the rod, positive pushing it out: the sign
     of :func:`emasim.sim.mechanism.advance`). Used when present: an input ``rod_position_m``
     (the rod extension at the step's start, set every step and at initialisation, so both
-    sides agree on the rod position), a parameter ``step_s`` (set to the drive's sub-step), and
+    sides agree on the rod position), an input ``rudder_torque_Nm`` (external torque on the
+    rudder shaft, positive turning it positive), a parameter ``step_s`` (set to the drive's
+    sub-step), and
     outputs named as the 16 linkage states (:data:`emasim.plant.linkage.LINK_STATE_NAMES`);
     without them the result's linkage columns are NaN but for the rudder angle and rate
     (see :meth:`read`).
@@ -364,6 +371,7 @@ class FmuMechanism:
                 f"{', '.join(outputs) or 'none'})"
             )
         self.sets_position = "rod_position_m" in inputs
+        self._torque = None
         self.has_states = all(name in outputs for name in L.LINK_STATE_NAMES)
         start = {"rod_position_m": rod_position_m} if self.sets_position else {}
         if "step_s" in real_variables(md, "parameter"):
@@ -372,6 +380,8 @@ class FmuMechanism:
         self._inputs = self.fmu.refs(
             *(("rod_position_m",) if self.sets_position else ()), "rod_velocity_m_s"
         )
+        if "rudder_torque_Nm" in inputs:
+            self._torque = self.fmu.refs("rudder_torque_Nm")
         names = L.LINK_STATE_NAMES if self.has_states else ("rudder_angle_rad",)
         self._outputs = self.fmu.refs("rod_force_N", *names)
 
@@ -392,9 +402,16 @@ class FmuMechanism:
             y[L.TD], y[L.N_POS + L.TD] = angle, rate
         return values[0]
 
-    def advance(self, y: np.ndarray, t: float, s0: float, v: float, duration: float) -> float:
-        """The FMU over [t, t + duration] with the rod at s0 + v (t' - t); y receives its
-        states; returns the axial force of the linkage on the rod at the end, as ``advance``."""
+    def advance(
+        self, y: np.ndarray, t: float, s0: float, v: float, duration: float, torque: float = 0.0
+    ) -> float:
+        """The FMU over [t, t + duration] with the rod at s0 + v (t' - t) and ``torque`` on the
+        rudder shaft (refused by an FMU without that input, unless 0); y receives its states;
+        returns the axial force of the linkage on the rod at the end, as ``advance``."""
+        if self._torque is not None:
+            self.fmu.set_real(self._torque, [torque])
+        elif torque != 0.0:
+            raise InputError(f"{self.fmu.path}: the FMU has no input rudder_torque_Nm")
         self.fmu.set_real(self._inputs, [s0, v] if self.sets_position else [v])
         self.fmu.do_step(t, duration)
         return self.read(y, duration)

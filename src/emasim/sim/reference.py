@@ -26,12 +26,15 @@ ATOL = np.concatenate([[1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12], np.full(1
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, t_end):
+def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, t_end):
     """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
     boundary belongs to the next tick, as it does in the engine."""
     t_in = min(t, t_end - 1e-9 * (abs(t_end) + 1e-3))
     dx = np.zeros(A.N_STATE)  # the linkage rows stay 0 with the lumped rudder
-    A.rhs(x, u_d, u_q, signal_value(motor_load, t_in), signal_value(rod_load, t_in), p, dx)
+    t_load = signal_value(motor_load, t_in)
+    f_load = signal_value(rod_load, t_in)
+    r_load = signal_value(rudder_load, t_in)
+    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, dx)
     return dx
 
 
@@ -74,6 +77,7 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
                 setup.plant,
                 setup.motor_load,
                 setup.rod_load,
+                setup.rudder_load,
                 u_d,
                 u_q,
                 speed_ref,
@@ -88,7 +92,15 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
             method=method,
             rtol=rtol,
             atol=ATOL,
-            args=(u_d, u_q, setup.plant, setup.motor_load, setup.rod_load, t + ts),
+            args=(
+                u_d,
+                u_q,
+                setup.plant,
+                setup.motor_load,
+                setup.rod_load,
+                setup.rudder_load,
+                t + ts,
+            ),
         )
         if not sol.success:
             raise RuntimeError(f"reference solver failed at t = {t:g} s: {sol.message}")

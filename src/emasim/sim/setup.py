@@ -11,6 +11,7 @@ from ..interface import N_MEAS
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
+from ..signals import ZERO
 from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
 
 
@@ -33,6 +34,7 @@ class Setup:
     speed: Compiled
     current_params: np.ndarray
     position: Compiled | None = None
+    rudder_load: np.ndarray = field(default_factory=lambda: ZERO.copy())
     sensors: np.ndarray = field(default_factory=lambda: np.zeros((N_MEAS, 4)))
     record_every: int = 10
     seed: int = 0

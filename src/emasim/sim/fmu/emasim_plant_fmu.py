@@ -43,8 +43,10 @@ class EmasimPlant(Fmi2Slave):
         self.work = np.zeros((5, A.N_STATE))
         self.motor_load = encode([Constant(value=0.0)])
         self.rod_load = encode([Constant(value=0.0)])
+        self.rudder_load = encode([Constant(value=0.0)])
         self.step_s = DEFAULT_STEP_S
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
+        self.rudder_torque_Nm = 0.0
         register_step_and_inputs(self, PLANT_INPUTS)
         x, p = self.x, self.p
         getters = {
@@ -68,6 +70,7 @@ class EmasimPlant(Fmi2Slave):
         n = substeps_of(step_size, self.step_s)
         self.motor_load[CONSTANT_VALUE] = self.load_torque_Nm
         self.rod_load[CONSTANT_VALUE] = self.rod_force_N
+        self.rudder_load[CONSTANT_VALUE] = self.rudder_torque_Nm
         plant_substeps(
             current_time,
             self.x,
@@ -76,6 +79,7 @@ class EmasimPlant(Fmi2Slave):
             self.p,
             self.motor_load,
             self.rod_load,
+            self.rudder_load,
             step_size / n,
             n,
             self.work,
