@@ -250,7 +250,7 @@ RUN_SIG = types.void(
 )
 
 
-@nb.njit(RUN_SIG, cache=True, error_model="numpy")
+@nb.njit(RUN_SIG, cache=True, error_model="numpy", nogil=True)
 def run_ticks(
     k0,
     k1,

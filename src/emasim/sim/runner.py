@@ -43,17 +43,18 @@ def run_scenario(scenario, progress=None) -> Result:
 
 
 def run_comparison(scenario, progress=None) -> Comparison:
-    """Run every controller set of ``scenario.compare`` (or its one set) on the experiment."""
+    """Run every controller set of ``scenario.compare`` (or its one set) on the experiment,
+    in parallel (emasim.sim.batch); ``progress`` is told 0 at the start and 1 at the end."""
+    from .batch import run_all
+
     variants = scenario.variants()
-    results = {}
-    for i, (label, variant) in enumerate(variants):
-        part = None
-        if progress is not None:
-
-            def part(fraction, i=i):
-                progress((i + fraction) / len(variants))
-
-        results[label] = run_scenario(variant, progress=part)
+    if progress is not None:
+        progress(0.0)
+    results = dict(
+        zip((label for label, _ in variants), run_all(v for _, v in variants), strict=True)
+    )
+    if progress is not None:
+        progress(1.0)
     wall = sum(r.meta["simulation_wall_s"] for r in results.values())
     meta = _meta(scenario, wall)
     meta["real_time_factor"] = wall / (scenario.duration_s * len(variants))
