@@ -87,7 +87,7 @@ def cosimulate(scenario, communication_step_s: float):
     finally:
         if fmu is not None:
             fmu.close()
-    result = drive.result()
+    result = drive.result(linkage_columns=True)  # filled from the mechanism below
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
     rows = np.arange(result.data.shape[0]) * linked.record_every
     for i, name in enumerate(L.LINK_STATE_NAMES):

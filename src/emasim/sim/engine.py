@@ -59,6 +59,7 @@ EXTRA_COLUMNS = (
     *LINKAGE_COLUMNS,
 )
 TRACE_COLUMNS = ("t_s", *A.STATE_NAMES, *EXTRA_COLUMNS)
+LINKAGE_TRACE_COLUMNS = frozenset((*L.LINK_STATE_NAMES, *LINKAGE_COLUMNS))
 C_STATE = 1
 C_EXTRA = 1 + A.N_STATE
 N_COLUMNS = len(TRACE_COLUMNS)
@@ -403,8 +404,21 @@ class EngineRun:
             raise SimulationDiverged(_divergence_message(setup, self.status))
         self.tick = k_end
 
-    def result(self) -> Result:
-        return Result(TRACE_COLUMNS, self.run.trace, meta={"simulation_wall_s": self.wall_s})
+    def result(self, linkage_columns: bool | None = None) -> Result:
+        """The traces so far. The linkage's columns are kept when the plant has a linkage
+        (or when ``linkage_columns`` says so); without one they are idle and left out."""
+        if linkage_columns is None:
+            linkage_columns = self.setup.plant[A.P_LOAD_MODEL] == A.LOAD_LINKAGE
+        keep = [
+            i
+            for i, name in enumerate(TRACE_COLUMNS)
+            if linkage_columns or name not in LINKAGE_TRACE_COLUMNS
+        ]
+        return Result(
+            tuple(TRACE_COLUMNS[i] for i in keep),
+            np.ascontiguousarray(self.run.trace[:, keep]),
+            meta={"simulation_wall_s": self.wall_s},
+        )
 
 
 def simulate(setup, progress=None):
