@@ -40,6 +40,7 @@ def run_folder(tmp_path_factory):
 def test_run_writes_the_whole_folder(run_folder):
     out, output = run_folder
     assert {p.name for p in out.iterdir()} == {
+        ".emasim-result",
         "result.parquet",
         "metrics.json",
         "scenario.toml",
@@ -83,16 +84,16 @@ def test_the_saved_scenario_repeats_the_run_exactly(run_folder):
 
 
 BAD_INPUTS = [
-    (["--set", "plant.motor.inertia_kgm2=-1"], "plant.motor.inertia_kgm2", "greater than 0"),
-    (["--set", "plant.motor.inertia_kgm2=0"], "plant.motor.inertia_kgm2", "greater than 0"),
+    (["--set", "plant.motor.inertia_kgm2=-1"], "plant.motor.inertia_kgm2", "greater than or"),
+    (["--set", "plant.motor.inertia_kgm2=0"], "plant.motor.inertia_kgm2", "greater than or"),
     (["--set", "plant.motor.resistance_ohm=0"], "plant.motor.resistance_ohm", "greater than 0"),
-    (["--set", "solver.step_s=-1e-5"], "solver.step_s", "greater than 0"),
+    (["--set", "solver.step_s=-1e-5"], "solver.step_s", "greater than or equal to 0.00000001"),
     (["--set", "solver.step_s=3e-5"], "step_s", "whole multiple"),
     (["--set", "duration_s=0"], "duration_s", "greater than 0"),
     (["--set", "duration_s=-2"], "duration_s", "greater than 0"),
     (["--set", "duration_s=nan"], "duration_s", "finite"),
     (["--set", "plant.backlash.width_mm=inf"], "plant.backlash.width_mm", "finite"),
-    (["--set", "duration_ms=2"], "duration_ms", "unknown key; allowed: name, description"),
+    (["--set", "duration_ms=2"], "duration_ms", "did you mean 'duration_s'?; allowed: name"),
     (["--set", "plant.backlash.width_um=0.2"], "plant.backlash.width_um", "allowed: width_mm"),
     (["--set", "plant.motor.colour=1"], "plant.motor.colour", "unknown key"),
     (["--controller", "speed=fancy"], "speed-loop controller 'fancy'", "choose one of: pi"),
@@ -138,10 +139,10 @@ def test_a_diverging_run_stops_with_the_time_and_state(tmp_path):
         "--set",
         "solver.step_s=1e-4",
         "--set",
-        "plant.backlash.stiffness_N_per_m=1e13",
+        "plant.backlash.stiffness_N_per_m=1e12",
         "--out",
         str(tmp_path / "d"),
     )
     assert result.exit_code == 2
-    assert "diverged at t =" in result.output and "solver.step_s" in result.output
+    assert "diverged at t =" in result.output and "solver.step_s = 0.0001 s is too" in result.output
     assert not (tmp_path / "d").exists()

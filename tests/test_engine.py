@@ -14,8 +14,12 @@ import pytest
 from emasim.control.slot import CONTROLLER_SIG
 from emasim.errors import SimulationDiverged
 from emasim.interface import O_RATE, O_VALUE
+from emasim.plant.actuator import STATE_NAMES, X_IQ, X_WM
 from emasim.scenarios.loader import load_scenario
+from emasim.scenarios.schema import Load
+from emasim.signals import Constant
 from emasim.sim import engine
+from emasim.sim.diagnosis import likely_cause
 from emasim.sim.engine import simulate
 from emasim.sim.reference import simulate_reference
 
@@ -94,17 +98,40 @@ def test_a_users_controller_plugs_in_without_recompiling_the_loop():
     assert np.allclose(result["iq_ref_A"], 5.0)
 
 
-def test_divergence_names_time_state_and_suggests_a_smaller_step():
-    # a contact 1e5 times stiffer than the preset: its mode (6e5 rad/s) is far beyond RK4's
-    # stability limit at h = 1e-4 s (|lambda h| < 2.8)
+def test_divergence_names_time_state_and_the_stiffness_the_step_is_too_large_for():
+    # a contact 1e4 times stiffer than the preset: its mode (about 2e5 rad/s) is far beyond
+    # RK4's stability limit at h = 1e-4 s (omega h < 2.83)
     scenario = short(
-        "speed-step", 0.05, 0.02, "plant.backlash.stiffness_N_per_m=1e13", "solver.step_s=1e-4"
+        "speed-step", 0.05, 0.02, "plant.backlash.stiffness_N_per_m=1e12", "solver.step_s=1e-4"
     )
     with pytest.raises(SimulationDiverged) as err:
         simulate(scenario.setup())
     message = str(err.value)
-    assert "t = " in message and "Reduce the integration sub-step" in message
-    assert any(name in message for name in ("motor_speed_rad_s", "iq_A", "id_A"))
+    assert "t = " in message and "too large for the backlash contact stiffness" in message
+    assert any(name in message for name in STATE_NAMES)
+
+
+def test_divergence_under_an_overhauling_load_names_the_load():
+    # the step is fine; a rod force ten times the stall force back-drives the actuator
+    scenario = short("speed-step", 2.0, 0.02, "solver.step_s=1e-5")
+    scenario = scenario.model_copy(
+        update={"load": Load(rod_force_N=[Constant(value=10 * stall_force(scenario.plant))])}
+    )
+    with pytest.raises(SimulationDiverged, match="beyond the .* N the drive can hold"):
+        simulate(scenario.setup())
+
+
+def test_without_a_stiff_mode_or_a_load_the_cause_is_the_state_that_ran_away():
+    setup = short("speed-step", 0.2, 0.02).setup()
+    assert "ran far beyond the drive's speed" in likely_cause(setup, X_WM)
+    assert "current limit" in likely_cause(setup, X_IQ)
+
+
+def stall_force(plant) -> float:
+    """kt I_max eta_gear eta_screw / K (N), from the plant's own fields."""
+    d = plant.drivetrain
+    eta = d.gear_efficiency * d.screw_efficiency
+    return plant.torque_constant_Nm_per_A * plant.motor.max_current_A * eta / plant.ratio_m_per_rad
 
 
 def test_noise_is_reproducible_from_the_seed():

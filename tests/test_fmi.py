@@ -35,7 +35,7 @@ from emasim.sim.fmi import (
     export_mechanism_fmu,
     export_plant_fmu,
 )
-from emasim.sim.runner import run_scenario
+from emasim.sim.runner import run_comparison, run_scenario
 from emasim.sim.setup import Setup, plant_facts
 
 pytestmark = pytest.mark.skipif(
@@ -184,7 +184,8 @@ def test_the_plant_fmu_under_fmpy_matches_the_engine(fmu_and_engine):
 def cosim_step(*settings):
     base = ["duration_s=0.2", "solver.communication_step_s=1e-3"]
     return run_scenario(
-        load_scenario("cosim-step", controllers=["pid"], settings=[*base, *settings])
+        load_scenario("cosim-step", controllers=["pid"], settings=[*base, *settings]),
+        trust_fmu=True,
     )
 
 
@@ -253,6 +254,24 @@ def test_a_mechanism_fmu_with_only_the_velocity_and_two_outputs_will_do(tmp_path
     rate = minimal["linkage_rudder_rate_rad_s"]  # mean over a step: lags by half of it
     assert np.abs(rate - builtin["linkage_rudder_rate_rad_s"]).max() < 0.1 * np.abs(rate).max()
     assert np.isfinite(minimal.metrics["rise_time_s"])
+
+
+def test_an_external_fmu_runs_only_when_trusted(mechanism_fmu):
+    """Loading an FMU runs its code: without trust_fmu the run is refused before it starts."""
+    scenario = load_scenario(
+        "cosim-step",
+        controllers=["pid"],
+        settings=[
+            "duration_s=0.01",
+            "solver.communication_step_s=1e-3",
+            f"solver.mechanism_fmu={json.dumps(str(mechanism_fmu))}",
+        ],
+    )
+    with pytest.raises(InputError, match="--trust-fmu"):
+        run_scenario(scenario)
+    with pytest.raises(InputError, match="trust_fmu=True"):
+        run_comparison(scenario)
+    assert run_scenario(scenario, trust_fmu=True).t[-1] > 0
 
 
 def test_the_mechanism_fmu_is_refused_outside_a_cosimulation_or_without_its_variables(

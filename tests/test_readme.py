@@ -1,16 +1,31 @@
 """The README's examples run as written."""
 
-import re
+import shlex
 import tomllib
 from pathlib import Path
 
+from typer.testing import CliRunner
+
+from emasim.cli import app
 from emasim.scenarios.loader import validate_scenario
 
 README = (Path(__file__).parents[1] / "README.md").read_text()
 
 
 def blocks(language: str) -> list[str]:
-    return re.findall(rf"```{language}\n(.*?)```", README, flags=re.S)
+    """The fenced code blocks whose info string is ``language`` ('' for plain blocks)."""
+    found, current, info = [], None, None
+    for line in README.splitlines(keepends=True):
+        if line.startswith("```"):
+            if current is None:
+                current, info = [], line[3:].strip()
+            else:
+                if info == language:
+                    found.append("".join(current))
+                current = None
+        elif current is not None:
+            current.append(line)
+    return found
 
 
 def test_the_scenario_example_is_valid_and_runs():
@@ -28,3 +43,24 @@ def test_the_python_examples_run(tmp_path, monkeypatch):
         exec(code, namespace)  # noqa: S102 - the README's own examples
     assert (tmp_path / "runs" / "wide-gap" / "result.parquet").is_file()
     assert namespace["setup"].speed.function is namespace["my_speed_law"]
+
+
+def test_the_error_examples_print_what_the_readme_says(tmp_path, monkeypatch):
+    """Each ``$ emasim ...`` line of the README's plain code blocks, run here, prints the line
+    below it (one line, exit 2). ``thesis`` is a user's folder holding a file."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "thesis").mkdir()
+    (tmp_path / "thesis" / "thesis.tex").write_text("years of work")
+    examples = [
+        (line, following)
+        for block in blocks("")
+        for line, following in zip(block.splitlines(), block.splitlines()[1:], strict=False)
+        if line.startswith("$ emasim ")
+    ]
+    assert len(examples) >= 4
+    for command, expected in examples:
+        result = CliRunner().invoke(app, shlex.split(command)[2:])
+        assert result.exit_code == 2, command
+        assert result.stderr.strip() == expected, command
+    assert (tmp_path / "thesis" / "thesis.tex").read_text() == "years of work"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]

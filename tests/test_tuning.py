@@ -10,7 +10,14 @@ from typer.testing import CliRunner
 from emasim.cli import app
 from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
 from emasim.sim.engine import simulate
-from emasim.tuning import CHATTER_WEIGHT, search_space, tune_scenario, tune_variant, tuning_cost
+from emasim.tuning import (
+    CHATTER_WEIGHT,
+    search_space,
+    study_key,
+    tune_scenario,
+    tune_variant,
+    tuning_cost,
+)
 
 SHORT = ["duration_s=0.05", "load.motor_torque_Nm=[]"]
 
@@ -41,11 +48,13 @@ def test_search_space_covers_both_loops_of_a_cascade():
 def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_path):
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
     storage = f"sqlite:///{tmp_path / 'study.db'}"
-    tuned, best, study = tune_variant(scenario, "PI", scenario.controllers, 4, storage, seed=1)
+    tuned, best, given, study = tune_variant(
+        scenario, "PI", scenario.controllers, 4, storage, seed=1
+    )
     assert study.trials[0].params == {"speed.bandwidth_Hz": 50.0}  # the gains given
-    assert best <= study.trials[0].value
+    assert given == study.trials[0].value and best <= given
     assert tuned.speed.bandwidth_Hz == pytest.approx(study.best_params["speed.bandwidth_Hz"])
-    _, _, again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1)
+    *_, again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1)
     complete = [t for t in again.trials if t.state == optuna.trial.TrialState.COMPLETE]
     assert len(complete) == 6  # resumed: two more, not six more
 
@@ -58,8 +67,9 @@ def test_every_controller_set_gets_the_same_budget_and_the_file_records_it(tmp_p
     storage = f"sqlite:///{tmp_path / 'study.db'}"
     tuned_raw, costs = tune_scenario(raw, scenario, 3, storage)
     assert list(costs) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
-    for label in costs:
-        study = optuna.load_study(study_name=f"speed-step:{label}", storage=storage)
+    for label, variant in scenario.variants():
+        name = f"speed-step:{label}:{study_key(variant)}"
+        study = optuna.load_study(study_name=name, storage=storage)
         assert len(study.trials) == 3
         assert costs[label][1] <= costs[label][0]
     tuned = validate_scenario(tuned_raw)

@@ -1,9 +1,14 @@
-"""The ``emasim`` command line: list scenarios and controllers, run a scenario.
+"""The ``emasim`` command line: list scenarios and controllers, run, tune, reproduce, export.
 
 Bad input ends with one line naming the field and the allowed range, exit code 2, and nothing
-written; no Python traceback reaches the user for it.
+written. No Python traceback reaches the user: a usage error is one line (exit 2), an
+interruption says so (exit 130), and an unexpected failure is one line naming it (exit 1; set
+``EMASIM_TRACEBACK=1`` to see the traceback). Output never replaces anything emasim did not
+write (:mod:`emasim.output`); replacing an earlier emasim result needs ``--force``.
 """
 
+import os
+import sys
 import time
 from pathlib import Path
 from typing import Annotated
@@ -12,21 +17,67 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
+from typer.core import TyperGroup
 
 from .errors import EmasimError
 
+console = Console()
+err_console = Console(stderr=True)
+
+
+def _say_error(message: str) -> None:
+    """One line on stderr: ``error: message`` (newlines folded)."""
+    text = " ".join(str(message).split())
+    err_console.print(f"[bold red]error:[/] {text}", highlight=False, soft_wrap=True, markup=True)
+
+
+class _OneLineErrors(TyperGroup):
+    """The command group, with every failure reduced to one line and a meaningful exit code."""
+
+    def main(self, *args, **kwargs):
+        kwargs["standalone_mode"] = False
+        try:
+            code = super().main(*args, **kwargs)
+        except EmasimError as err:
+            _say_error(err)
+            code = 2
+        except (typer.Abort, KeyboardInterrupt):
+            _say_error("interrupted")
+            code = 130
+        except Exception as err:
+            code = _usage_or_internal_error(err)
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+def _usage_or_internal_error(err: Exception) -> int:
+    """A usage error of the command-line parser (bad option, missing argument: anything with
+    click's ``format_message`` and ``exit_code``) as one line; anything else is a bug, said in
+    one line too, unless EMASIM_TRACEBACK is set."""
+    if type(err).__name__ == "NoArgsIsHelpError":
+        err.show()
+        return 2
+    if hasattr(err, "format_message") and isinstance(getattr(err, "exit_code", None), int):
+        _say_error(err.format_message())
+        return err.exit_code
+    if os.environ.get("EMASIM_TRACEBACK"):
+        raise err
+    _say_error(f"internal error: {type(err).__name__}: {err} (EMASIM_TRACEBACK=1 shows where)")
+    return 1
+
+
 app = typer.Typer(
+    cls=_OneLineErrors,
     help="emasim: electromechanical actuator simulation and controller comparison.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-console = Console()
-err_console = Console(stderr=True)
+
+FORCE_HELP = "replace an earlier emasim result there (never anything emasim did not write)"
 
 
 def _fail(err: Exception) -> None:
-    err_console.print(f"[bold red]error:[/] {err}", highlight=False, soft_wrap=True)
+    _say_error(err)
     raise typer.Exit(code=2)
 
 
@@ -118,28 +169,43 @@ def run(
         ),
     ] = None,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="run folder (default runs/SCENARIO)")
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="run folder (default: a fresh runs/SCENARIO/WHAT-YYYYmmdd-HHMMSS)"
+        ),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    trust_fmu: Annotated[
+        bool,
+        typer.Option(
+            "--trust-fmu", help="allow solver.mechanism_fmu: loading an FMU runs its code"
+        ),
+    ] = False,
     plot: Annotated[bool, typer.Option(help="write plot.png")] = True,
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
+    from .output import check_folder
     from .scenarios.loader import load_scenario
+    from .sim.cosim import check_fmu_trust
     from .sim.runner import run_comparison, run_scenario
 
     try:
         sc = load_scenario(scenario, settings=setting or [], controllers=controller or [])
+        check_fmu_trust(sc, trust_fmu)
+        if out is not None:
+            check_folder(out, force)  # refuse before spending the simulation time
         progress = _LazyProgress(f"simulating {sc.name}")
         try:
             if sc.compare:
-                result = run_comparison(sc, progress=progress)
+                result = run_comparison(sc, progress=progress, trust_fmu=trust_fmu)
                 by_label = result.metrics
             else:
-                result = run_scenario(sc, progress=progress)
+                result = run_scenario(sc, progress=progress, trust_fmu=trust_fmu)
                 by_label = {sc.controllers_label(): result.metrics}
         finally:
             progress.close()
-        folder = result.save(out or Path("runs") / sc.name, plot=plot)
+        folder = result.save(out, plot=plot, force=force)
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")
@@ -161,24 +227,27 @@ def tune(
     setting: Annotated[list[str] | None, typer.Option("--set", "-s")] = None,
     trials: Annotated[int, typer.Option(min=1, max=10000, help="runs per controller set")] = 40,
     storage: Annotated[
-        str | None, typer.Option(help="Optuna storage URL (default sqlite in runs/tune/)")
+        str | None,
+        typer.Option(help="Optuna storage URL (default sqlite:///runs/tune/SCENARIO.db)"),
     ] = None,
     save: Annotated[
-        Path | None, typer.Option(help="tuned scenario file (default runs/tune/SCENARIO.toml)")
+        Path | None,
+        typer.Option(help="tuned scenario file (default a fresh runs/tune/SCENARIO-TIME.toml)"),
     ] = None,
-    seed: Annotated[int, typer.Option(min=0, help="sampler seed")] = 0,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    seed: Annotated[int, typer.Option(min=0, max=2**32 - 1, help="sampler seed")] = 0,
 ) -> None:
     """Tune every controller set of a scenario with the same budget and cost (Optuna);
-    resumable; writes the scenario with the tuned gains."""
-    import tomli_w
-
+    resumable (a study is keyed by the fully resolved scenario); writes the scenario with the
+    tuned gains."""
+    from .output import RUNS_ROOT, check_file, fresh_file, slug, write_file
     from .scenarios.loader import (
         apply_controller_choice,
         apply_setting,
         read_scenario_file,
         validate_scenario,
     )
-    from .tuning import tune_scenario
+    from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
 
     try:
         raw, source = read_scenario_file(scenario)
@@ -189,36 +258,53 @@ def tune(
         for item in setting or []:
             apply_setting(raw, item)
         sc = validate_scenario(raw, source)
+        root = RUNS_ROOT / "tune"
+        if save is not None:
+            check_file(save, force, is_tuned_scenario, "--save")
+        url = storage or default_storage(root / f"{slug(sc.name)}.db")
+        study_storage = open_storage(url)
     except EmasimError as err:
         _fail(err)
-    folder = Path("runs") / "tune"
-    folder.mkdir(parents=True, exist_ok=True)
-    storage = storage or f"sqlite:///{folder / (sc.name + '.db')}"
 
     def report(label, before, after):
-        console.print(f"{label}: cost {before:.5g} -> {after:.5g}", highlight=False)
+        shown = "n/a (its trial was interrupted)" if before is None else f"{before:.5g}"
+        console.print(f"{label}: cost {shown} -> {after:.5g}", highlight=False)
 
-    tuned, _ = tune_scenario(raw, sc, trials, storage, seed, report=report)
-    target = save or folder / f"{sc.name}.toml"
-    tmp = target.with_name(f".{target.name}.tmp")
-    tmp.write_text(tomli_w.dumps(tuned))
-    tmp.replace(target)
-    console.print(f"tuned scenario written to {target} (study in {storage})", highlight=False)
+    try:
+        tuned, _ = tune_scenario(raw, sc, trials, study_storage, seed, report=report)
+        target = save or fresh_file(root, f"{slug(sc.name)}", ".toml")
+        write_file(
+            target,
+            tuned_toml(tuned, sc.name),
+            force=force,
+            is_ours=is_tuned_scenario,
+            what="--save",
+        )
+    except EmasimError as err:
+        _fail(err)
+    console.print(f"tuned scenario written to {target} (study in {url})", highlight=False)
 
 
 @app.command()
 def reproduce(
-    out: Annotated[Path, typer.Option("--out", "-o", help="report folder")] = Path(
-        "runs/reproduce"
-    ),
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out",
+            "-o",
+            help="report folder (default: a fresh runs/reproduce/all-TIME, or only-NAMES-TIME)",
+        ),
+    ] = None,
     only: Annotated[
         list[str] | None,
         typer.Option("--only", help="run only this experiment (repeatable)"),
     ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Run every paper experiment and write report.md, report.html and tables.json."""
     from .analysis.reproduce import EXPERIMENTS
     from .analysis.reproduce import reproduce as run_all
+    from .output import check_folder
 
     names = [e.scenario for e in EXPERIMENTS]
     unknown = [n for n in only or [] if n not in names]
@@ -231,7 +317,9 @@ def reproduce(
     start = time.perf_counter()
     progress = _LazyProgress("reproducing the paper")
     try:
-        folder = run_all(out, only=only, progress=progress)
+        if out is not None:
+            check_folder(out, force)
+        folder = run_all(out, only=only, progress=progress, force=force)
     except EmasimError as err:
         _fail(err)
     finally:
@@ -257,6 +345,7 @@ def export_fmu(
     mechanism: Annotated[
         bool, typer.Option("--mechanism", help="the linkage alone, its rod velocity driven")
     ] = False,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Write the plant (drive + rudder stage or linkage) as an FMI 2.0 co-simulation FMU.
 
@@ -282,12 +371,8 @@ def export_fmu(
             raise InputError(f"--preset {preset} has no linkage; --mechanism needs one")
         export = export_mechanism_fmu if mechanism else export_plant_fmu
         default = "emasim-mechanism.fmu" if mechanism else "emasim-plant.fmu"
-        path = export(out or Path(default), plant)
+        path = export(out or Path(default), plant, force=force)
     except EmasimError as err:
         _fail(err)
     what = "mechanism" if mechanism else "plant"
     console.print(f"wrote {path} ({what} FMU, FMI 2.0 co-simulation, {preset})", highlight=False)
-
-
-def main() -> None:  # pragma: no cover - console entry point
-    app()

@@ -17,6 +17,8 @@ import numba as nb
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from .config import STRICT
+
 KIND_CONSTANT = 0.0
 KIND_STEP = 1.0
 KIND_SINE = 2.0
@@ -24,15 +26,22 @@ KIND_RAMP = 3.0
 KIND_TABLE = 4.0
 
 
+MAX_TIME_S = 1e6  # every time of a signal lies in [0, MAX_TIME_S]
+MAX_VALUE = 1e9  # every value of a signal, in the unit of its key, lies within +-MAX_VALUE
+MAX_TABLE_POINTS = 1_000_000
+Time = Annotated[float, Field(ge=0, le=MAX_TIME_S)]
+Value = Annotated[float, Field(ge=-MAX_VALUE, le=MAX_VALUE)]
+
+
 class _Term(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+    model_config = ConfigDict(**STRICT, frozen=True)
 
 
 class Constant(_Term):
     """y(t) = value."""
 
     type: Literal["constant"] = "constant"
-    value: float
+    value: Value
 
     def packed(self, scale: float) -> list[float]:
         return [KIND_CONSTANT, 1.0, self.value * scale]
@@ -42,9 +51,9 @@ class Step(_Term):
     """y(t) = initial for t < time_s, final from time_s on (derivatives taken as zero)."""
 
     type: Literal["step"] = "step"
-    time_s: float = Field(default=0.0, ge=0)
-    final: float
-    initial: float = 0.0
+    time_s: Time = 0.0
+    final: Value
+    initial: Value = 0.0
 
     def packed(self, scale: float) -> list[float]:
         return [KIND_STEP, 3.0, self.time_s, self.initial * scale, self.final * scale]
@@ -57,11 +66,11 @@ class Sine(_Term):
     """
 
     type: Literal["sine"] = "sine"
-    amplitude: float
-    frequency_Hz: float = Field(gt=0)
-    phase_deg: float = 0.0
-    offset: float = 0.0
-    start_s: float = Field(default=0.0, ge=0)
+    amplitude: Value
+    frequency_Hz: float = Field(gt=0, le=1e6)
+    phase_deg: float = Field(default=0.0, ge=-3600, le=3600)
+    offset: Value = 0.0
+    start_s: Time = 0.0
 
     def packed(self, scale: float) -> list[float]:
         return [
@@ -76,29 +85,33 @@ class Sine(_Term):
 
 
 class Ramp(_Term):
-    """y(t) = slope_per_s (t - start_s) between start_s and end_s, held after end_s, 0 before."""
+    """y(t) = slope_per_s (t - start_s) between start_s and end_s, held after end_s, 0 before.
+
+    Without ``end_s`` the ramp never stops.
+    """
 
     type: Literal["ramp"] = "ramp"
-    slope_per_s: float
-    start_s: float = Field(default=0.0, ge=0)
-    end_s: float = Field(default=1e300, gt=0)
+    slope_per_s: Value
+    start_s: Time = 0.0
+    end_s: Time | None = None
 
     @model_validator(mode="after")
     def _ordered(self):
-        if self.end_s <= self.start_s:
+        if self.end_s is not None and self.end_s <= self.start_s:
             raise ValueError(f"end_s must be > start_s ({self.start_s}), got {self.end_s}")
         return self
 
     def packed(self, scale: float) -> list[float]:
-        return [KIND_RAMP, 3.0, self.slope_per_s * scale, self.start_s, self.end_s]
+        end = math.inf if self.end_s is None else self.end_s
+        return [KIND_RAMP, 3.0, self.slope_per_s * scale, self.start_s, end]
 
 
 class Table(_Term):
     """Piecewise-linear through (time_s[i], values[i]), held constant outside the table."""
 
     type: Literal["table"] = "table"
-    time_s: list[float] = Field(min_length=2)
-    values: list[float] = Field(min_length=2)
+    time_s: list[Time] = Field(min_length=2, max_length=MAX_TABLE_POINTS)
+    values: list[Value] = Field(min_length=2, max_length=MAX_TABLE_POINTS)
 
     @model_validator(mode="after")
     def _consistent(self):

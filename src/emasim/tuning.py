@@ -11,22 +11,35 @@ where IAE is the integral of |reference - output| of the loop the scenario close
 rod position or rudder), T the duration, R the largest |reference|, TV(iq*) the total variation
 per second of the current command and I_max the drive's current limit: tracking error, plus a
 price on control chattering that wears the drive. A run that diverges costs DIVERGED_COST.
-Studies live in SQLite by default (any SQLAlchemy URL works), one per scenario and label, so an
-interrupted tuning resumes where it stopped and several machines can share a study.
+
+Studies live in SQLite by default (any SQLAlchemy URL works). A study is named by the scenario,
+the label and a hash of the fully resolved single-run scenario (:func:`study_key`), so a changed
+plant, sensor, load or solver starts a new study, and an unchanged one resumes where it stopped.
+Trials send a heartbeat: a trial whose process was killed is failed once its heartbeat is
+HEARTBEAT_GRACE_S old and run again with the same gains, so a kill at any moment, during the
+first trial included, costs at most that trial. Several machines can share a study.
 """
 
+import hashlib
+import json
+import sqlite3
 import warnings
+from pathlib import Path
 
 import numpy as np
 import optuna
 
 from .analysis.metrics import integral_absolute_error, total_variation_rate
-from .errors import SimulationDiverged
+from .errors import InputError, SimulationDiverged
 from .sim.engine import simulate
 
 CHATTER_WEIGHT = 2e-3
 DIVERGED_COST = 1e3
 LOOPS = ("position", "speed")
+HEARTBEAT_S = 1  # a running trial tells the storage it is alive this often
+HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
+GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
+TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
 
 
 def tuning_cost(result, max_current_A: float) -> float:
@@ -61,8 +74,83 @@ def search_space(controllers) -> dict[str, tuple[float, float]]:
     }
 
 
-def tune_variant(scenario, label: str, controllers, trials: int, storage: str, seed: int = 0):
-    """Tune one controller set on ``scenario``; returns (tuned Controllers, best cost, study)."""
+def default_storage(path: Path) -> str:
+    """The SQLite URL of a study database file."""
+    return f"sqlite:///{path}"
+
+
+def _sqlite_path(url: str) -> Path | None:
+    return Path(url.removeprefix("sqlite:///")) if url.startswith("sqlite:///") else None
+
+
+def _is_optuna_database(path: Path) -> bool:
+    """True for an SQLite file that holds Optuna's tables (so tuning only adds studies)."""
+    try:
+        with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as db:
+            names = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
+    except sqlite3.Error:
+        return False
+    return {"studies", "trials", "version_info"} <= names
+
+
+def open_storage(url: str):
+    """Optuna's RDB storage at ``url``, with heartbeats and retries of killed trials.
+
+    Refused with one line: an SQLite file that exists but is not an Optuna database (it is
+    never written to), a folder, a URL no database driver takes, a database that cannot open.
+    """
+    from .output import check_parents
+
+    path = _sqlite_path(url)
+    if path is not None:
+        if path.exists() and not (path.is_file() and _is_optuna_database(path)):
+            raise InputError(
+                f"--storage {url}: {path} exists and is not an Optuna study database; "
+                "emasim never writes into it (choose another path)"
+            )
+        check_parents(path, "--storage")
+        path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            return optuna.storages.RDBStorage(
+                url,
+                heartbeat_interval=HEARTBEAT_S,
+                grace_period=HEARTBEAT_GRACE_S,
+                heartbeat_stale_trial_callback=optuna.storages.RetryHeartbeatStaleTrialCallback(),
+            )
+    except Exception as err:  # SQLAlchemy raises many kinds: say the first line of it
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise InputError(f"--storage {url}: cannot open ({first})") from None
+
+
+def study_key(scenario) -> str:
+    """A short hash of the fully resolved single-run scenario (its tuning record left out)."""
+    resolved = scenario.model_dump(mode="json", exclude={"tuning"})
+    text = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def is_tuned_scenario(path: Path) -> bool:
+    """True for a file that emasim tune wrote (it starts with TUNED_HEADER)."""
+    try:
+        with open(path, encoding="utf-8") as handle:
+            return handle.readline().startswith(TUNED_HEADER)
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
+def tuned_toml(tuned_raw: dict, name: str) -> str:
+    """The text of a tuned scenario file: emasim's header line, then the TOML."""
+    import tomli_w
+
+    return f"{TUNED_HEADER} {name} with tuned gains (see [tuning])\n" + tomli_w.dumps(tuned_raw)
+
+
+def tune_variant(scenario, label: str, controllers, trials: int, storage, seed: int = 0):
+    """Tune one controller set on ``scenario``; returns (tuned Controllers, best cost, the cost
+    of the given gains or None while their trial is unfinished, study). ``storage`` is an
+    Optuna storage or URL (see :func:`open_storage`)."""
     space = search_space(controllers)
     max_current = scenario.plant.motor.max_current_A
 
@@ -80,8 +168,10 @@ def tune_variant(scenario, label: str, controllers, trials: int, storage: str, s
         return tuning_cost(result, max_current)
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
+    if isinstance(storage, str):
+        storage = open_storage(storage)
     study = optuna.create_study(
-        study_name=f"{scenario.name}:{label}",
+        study_name=f"{scenario.name}:{label}:{study_key(scenario)}",
         storage=storage,
         load_if_exists=True,
         direction="minimize",
@@ -94,10 +184,15 @@ def tune_variant(scenario, label: str, controllers, trials: int, storage: str, s
             value = getattr(getattr(controllers, loop), field)
             if value is not None:
                 start[key] = float(value)
-        study.enqueue_trial(start, skip_if_exists=True)
-    done = sum(t.state == optuna.trial.TrialState.COMPLETE for t in study.trials)
+        study.enqueue_trial(start, user_attrs={GIVEN: True})
+    complete = optuna.trial.TrialState.COMPLETE
+    done = sum(t.state == complete for t in study.trials)
     study.optimize(objective, n_trials=max(0, trials - done))
-    return _controllers_with(controllers, study.best_params), study.best_value, study
+    if not any(t.state == complete for t in study.trials):
+        raise InputError(f"tune {label}: no trial completed; raise --trials")
+    given = [t.value for t in study.trials if t.state == complete and t.user_attrs.get(GIVEN)]
+    tuned = _controllers_with(controllers, study.best_params)
+    return tuned, study.best_value, (given[0] if given else None), study
 
 
 def tune_scenario(raw: dict, scenario, trials: int, storage: str, seed: int = 0, report=None):
@@ -111,10 +206,10 @@ def tune_scenario(raw: dict, scenario, trials: int, storage: str, seed: int = 0,
     costs = {}
     entries = list(tuned_raw["compare"]) if scenario.compare else None
     for i, (label, variant) in enumerate(scenario.variants()):
-        tuned, best, study = tune_variant(
+        tuned, best, before, _ = tune_variant(
             variant, label, variant.controllers, trials, storage, seed
         )
-        costs[label] = (study.trials[0].value, best)
+        costs[label] = (before, best)
         if report is not None:
             report(label, *costs[label])
         overrides = {

@@ -39,6 +39,19 @@ BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
 
 
+def undefined_metrics(metrics: dict) -> dict[str, str]:
+    """Why each non-finite metric is undefined (saved as null in metrics.json, this in meta)."""
+    reasons = {}
+    for key, value in metrics.items():
+        if isinstance(value, float) and not math.isfinite(value):
+            reasons[key] = (
+                "never reached within the run (its band or level was not entered by the end)"
+                if key.endswith("_time_s")
+                else "not defined for this run (a window without data, or a level never reached)"
+            )
+    return reasons
+
+
 def load_step_time(scenario: dict) -> float | None:
     """Time of the first load step of a resolved scenario, or None."""
     for terms in scenario.get("load", {}).values():

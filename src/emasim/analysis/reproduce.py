@@ -8,7 +8,6 @@ the tuning record), ``tables.json`` (the same numbers for machines, with a ``hea
 The paper's numbers are in ``paper_results.toml`` beside this module (transcribed from the text).
 """
 
-import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
+from ..output import json_text
 from .report import BENCH_SETTLING_BAND, BENCH_STEADY_S, DEAD_ZONE_MM, STEADY_FRACTION
 
 
@@ -385,7 +385,7 @@ def write_report(folder: Path, tables: dict, scenarios: dict, figures: dict, not
         f"<!doctype html><html><head><meta charset='utf-8'><title>emasim reproduction</title>"
         f"<style>{style}</style></head><body>{body}</body></html>\n"
     )
-    (folder / "tables.json").write_text(json.dumps(tables, indent=2, default=str) + "\n")
+    (folder / "tables.json").write_text(json_text(tables))
 
 
 NOTES_FILE = "reproduction_notes.md"
@@ -396,11 +396,24 @@ def notes() -> str:
     return resources.files(__package__).joinpath(NOTES_FILE).read_text()
 
 
-def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> Path:
-    """Run the paper's experiments (or ``only`` those) and write the report folder."""
+def reproduce(
+    out: str | Path | None = None,
+    only: list[str] | None = None,
+    progress=None,
+    force: bool = False,
+) -> Path:
+    """Run the paper's experiments (or ``only`` those) and write the report folder.
+
+    Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
+    ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
+    The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
+    """
+    from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
     from ..scenarios.loader import load_scenario
-    from ..sim.result import write_atomically
     from ..sim.runner import run_comparison
+
+    if out is not None:
+        check_folder(Path(out), force)
     from .plots import plot_bench, plot_clearance_sweep, plot_comparison, save_figure
 
     chosen = [e for e in EXPERIMENTS if not only or e.scenario in only]
@@ -437,4 +450,9 @@ def reproduce(out: str | Path, only: list[str] | None = None, progress=None) -> 
             folder, tables, {n: c.scenario for n, c in comparisons.items()}, figures, notes()
         )
 
-    return write_atomically(out, write)
+    if out is None:
+        what = "only-" + "-".join(only) if only else "all"
+        return write_folder(
+            fresh_folder(RUNS_ROOT / "reproduce", what), write, unique=True, kind="report"
+        )
+    return write_folder(Path(out), write, force=force, kind="report")

@@ -15,8 +15,9 @@ import math
 
 import numba as nb
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, Field
 
+from ..config import STRICT
 from ..numerics import limit_magnitude
 from .slot import PlantFacts
 
@@ -43,7 +44,7 @@ def current_control(state, params, i_d, i_q, w_m, id_ref, iq_ref, ts):
 class CurrentPI(BaseModel):
     """Current-loop design by bandwidth (default 2 pi 500 rad/s)."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = STRICT
     bandwidth_Hz: float = Field(default=500.0, gt=0, le=5e4, description="alpha_c / (2 pi)")
 
     def pack(self, plant: PlantFacts) -> tuple[np.ndarray, np.ndarray]:

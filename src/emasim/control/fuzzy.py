@@ -130,8 +130,8 @@ class PositionFuzzyPI(ControllerConfig):
     bandwidth_Hz: float = Field(default=4.0, gt=0, le=1e3, description="sets Kp0, Ki0 as for pi")
     kp_span: float = Field(default=0.5, ge=0, lt=1, description="Kp varies by +-span")
     ki_span: float = Field(default=0.5, ge=0, lt=1, description="Ki varies by +-span")
-    error_range_mm: float = Field(default=2.0, gt=0, description="E: |e| mapped to 1")
-    error_rate_range_mm_s: float = Field(default=50.0, gt=0, description="dE")
+    error_range_mm: float = Field(default=2.0, gt=0, le=1e4, description="E: |e| mapped to 1")
+    error_rate_range_mm_s: float = Field(default=50.0, gt=0, le=1e6, description="dE")
     velocity_feedforward: bool = True
 
     def tunable_ranges(self):

@@ -63,8 +63,12 @@ class SpeedPI(ControllerConfig):
     loop: ClassVar = "speed"
     name: Literal["pi"] = "pi"
     bandwidth_Hz: float = Field(default=50.0, gt=0, le=1e4, description="alpha_s / (2 pi)")
-    kp_A_s_per_rad: float | None = Field(default=None, ge=0, description="overrides bandwidth")
-    ki_A_per_rad: float | None = Field(default=None, ge=0, description="overrides bandwidth")
+    kp_A_s_per_rad: float | None = Field(
+        default=None, ge=0, le=1e6, description="overrides bandwidth"
+    )
+    ki_A_per_rad: float | None = Field(
+        default=None, ge=0, le=1e9, description="overrides bandwidth"
+    )
     acceleration_feedforward: bool = Field(
         default=False, description="add J/kt * dw_ref/dt to the current command"
     )
@@ -93,10 +97,12 @@ class PositionPID(ControllerConfig):
     loop: ClassVar = "position"
     name: Literal["pid", "pi"] = "pid"
     bandwidth_Hz: float = Field(default=4.0, gt=0, le=1e3, description="alpha_p / (2 pi)")
-    kd: float | None = Field(default=None, ge=0, description="derivative gain; pid default 0.05")
-    kp_per_s: float | None = Field(default=None, ge=0, description="overrides bandwidth")
-    ki_per_s2: float | None = Field(default=None, ge=0, description="overrides bandwidth")
-    derivative_filter_s: float = Field(default=2e-3, gt=0, description="Tf of the D term")
+    kd: float | None = Field(
+        default=None, ge=0, le=100, description="derivative gain; pid default 0.05"
+    )
+    kp_per_s: float | None = Field(default=None, ge=0, le=1e6, description="overrides bandwidth")
+    ki_per_s2: float | None = Field(default=None, ge=0, le=1e9, description="overrides bandwidth")
+    derivative_filter_s: float = Field(default=2e-3, gt=0, le=1.0, description="Tf of the D term")
     velocity_feedforward: bool = Field(default=True, description="add dx_ref/dt / K")
 
     @model_validator(mode="after")

@@ -84,17 +84,19 @@ class PositionSlidingMode(ControllerConfig):
     output: Literal["cascade", "current"] = Field(
         default="cascade", description="command the speed loop, or iq* directly"
     )
-    surface_slope_per_s: float = Field(default=20.0, gt=0, description="c")
+    surface_slope_per_s: float = Field(default=20.0, gt=0, le=1e4, description="c")
     switching_gain_m_s2: float | None = Field(
-        default=None, ge=0, description="eps; default 0.05 with the network, 1.0 without"
+        default=None, ge=0, le=1e6, description="eps; default 0.05 with the network, 1.0 without"
     )
-    boundary_layer_m_s: float = Field(default=2e-3, ge=0, description="phi; 0 = pure sign")
-    reaching_rate_per_s: float = Field(default=20.0, ge=0, description="q")
+    boundary_layer_m_s: float = Field(default=2e-3, ge=0, le=10, description="phi; 0 = pure sign")
+    reaching_rate_per_s: float = Field(default=20.0, ge=0, le=1e6, description="q")
     nodes_per_axis: int = Field(default=3, ge=1, le=6, description="grid of n^2 nodes")
-    error_range_mm: float = Field(default=5.0, gt=0, description="E: expected |e|")
-    error_rate_range_mm_s: float = Field(default=100.0, gt=0, description="dE: expected |de/dt|")
-    width: float = Field(default=0.5, gt=0, description="b, in units of the scaled inputs")
-    adaptation_gain: float = Field(default=2e4, ge=0, description="gamma")
+    error_range_mm: float = Field(default=5.0, gt=0, le=1e4, description="E: expected |e|")
+    error_rate_range_mm_s: float = Field(
+        default=100.0, gt=0, le=1e6, description="dE: expected |de/dt|"
+    )
+    width: float = Field(default=0.5, gt=0, le=100, description="b, in units of the scaled inputs")
+    adaptation_gain: float = Field(default=2e4, ge=0, le=1e9, description="gamma")
 
     def tunable_ranges(self):
         ranges = {

@@ -27,6 +27,8 @@ import numpy as np
 from numba import types
 from pydantic import BaseModel, ConfigDict
 
+from ..config import STRICT
+
 F8_ARRAY = types.float64[::1]
 CONTROLLER_SIG = types.void(F8_ARRAY, F8_ARRAY, F8_ARRAY, F8_ARRAY, types.float64, F8_ARRAY)
 CONTROLLER_TYPE = types.FunctionType(CONTROLLER_SIG)
@@ -86,7 +88,7 @@ def controller_law(function: Callable) -> Callable:
 class ControllerConfig(BaseModel):
     """Base of controller configs: validated, unit-suffixed fields, no unknown keys."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_assignment=True)
+    model_config = ConfigDict(**STRICT, validate_assignment=True)
     loop: ClassVar[Loop]
 
     @abstractmethod

@@ -37,10 +37,10 @@ class SpeedSMC(ControllerConfig):
     loop: ClassVar = "speed"
     name: Literal["smc"] = "smc"
     switching_gain_rad_s2: float = Field(
-        default=6000.0, gt=0, description="eps: must exceed the disturbance |d| = |TL|/J"
+        default=6000.0, gt=0, le=1e9, description="eps: must exceed the disturbance |d| = |TL|/J"
     )
-    reaching_rate_per_s: float = Field(default=300.0, ge=0, description="q")
-    boundary_layer_rad_s: float = Field(default=1.0, ge=0, description="phi; 0 = pure sign")
+    reaching_rate_per_s: float = Field(default=300.0, ge=0, le=1e6, description="q")
+    boundary_layer_rad_s: float = Field(default=1.0, ge=0, le=1e4, description="phi; 0 = pure sign")
 
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         params = np.array(

@@ -102,16 +102,16 @@ class SpeedSuperTwisting(ControllerConfig):
     loop: ClassVar = "speed"
     name: Literal["st", "st-improved", "st-gpio"] = "st-gpio"
     disturbance_rate_bound_rad_s3: float = Field(
-        default=2e5, gt=0, description="L >= |dd/dt|; sets beta and k by Levant's rule"
+        default=2e5, gt=0, le=1e12, description="L >= |dd/dt|; sets beta and k by Levant's rule"
     )
-    beta: float | None = Field(default=None, gt=0, description="A/(rad/s)^0.5; overrides L")
-    k_A_per_s: float | None = Field(default=None, gt=0, description="overrides L")
+    beta: float | None = Field(default=None, gt=0, le=1e6, description="A/(rad/s)^0.5; overrides L")
+    k_A_per_s: float | None = Field(default=None, gt=0, le=1e9, description="overrides L")
     boundary_layer_rad_s: float = Field(default=0.5, gt=0, lt=1, description="mu (improved)")
     exponent: float = Field(default=0.6, gt=0, le=1, description="alpha (improved), 1 = continuous")
     observer_bandwidth_Hz: float = Field(default=150.0, gt=0, le=1e4, description="GPIO wo/(2 pi)")
     acceleration_feedforward: bool = Field(default=False, description="add dw_ref/dt / b")
     eq37_bound: float = Field(
-        default=10.0, ge=0, description="D of eq. 37: |d1| <= D |x1|^0.5, normalised units"
+        default=10.0, ge=0, le=1e6, description="D of eq. 37: |d1| <= D |x1|^0.5, normalised units"
     )
 
     def tunable_ranges(self):

@@ -65,14 +65,16 @@ def friction_coefficient(v, c):
 class ContactParams(Strict):
     """Hinge contact law, in the units of the paper's Table 1."""
 
-    stiffness_N_per_mm_e: float = Field(gt=0, description="K, in N/mm^exponent")
+    stiffness_N_per_mm_e: float = Field(gt=0, le=1e12, description="K, in N/mm^exponent")
     exponent: float = Field(ge=1, le=5, description="e (Hertz: 1.5; the paper 2.2)")
-    damping_Ns_per_mm: float = Field(ge=0, description="C, reached at full penetration depth")
-    penetration_depth_mm: float = Field(gt=0, description="d, where damping is fully on")
+    damping_Ns_per_mm: float = Field(
+        ge=0, le=1e6, description="C, reached at full penetration depth"
+    )
+    penetration_depth_mm: float = Field(gt=0, le=10, description="d, where damping is fully on")
     mu_static: float = Field(ge=0, le=2)
     mu_dynamic: float = Field(ge=0, le=2)
-    stiction_speed_mm_s: float = Field(gt=0, description="Vs")
-    dynamic_speed_mm_s: float = Field(gt=0, description="Vd > Vs")
+    stiction_speed_mm_s: float = Field(gt=0, le=1e6, description="Vs")
+    dynamic_speed_mm_s: float = Field(gt=0, le=1e6, description="Vd > Vs")
 
     @model_validator(mode="after")
     def _ordered(self):

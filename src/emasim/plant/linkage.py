@@ -38,7 +38,7 @@ import numba as nb
 import numpy as np
 from pydantic import Field
 
-from ..config import MM, Strict
+from ..config import MM, Strict, numbers
 from . import contact
 
 # --- state of the linkage (positions, then rates) ----------------------------------------
@@ -303,27 +303,30 @@ def rudder_angle_of_extension(s: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.array([rigid_pose(float(x), q)[TD] for x in np.atleast_1d(s)])
 
 
+Point_mm = numbers(2, ge=-1e4, le=1e4)  # (x, y) in mm, within 10 m of the origin
+
+
 class LinkageParams(Strict):
     """The linkage, in mm, kg and kg m^2 (see the module docstring for the frames)."""
 
-    actuator_pivot_mm: tuple[float, float] = Field(description="A0, bearing housing 1")
-    rocker_pivot_mm: tuple[float, float] = Field(description="H3, bearing housing 3")
-    rudder_shaft_mm: tuple[float, float] = Field(description="O, bearing housings 1/2")
-    rod_length_mm: float = Field(gt=0, description="L0: A0 to the rod end at mid stroke")
-    actuator_inertia_kgm2: float = Field(gt=0, description="I_E: actuator body about A0")
-    rod_mass_kg: float = Field(gt=0)
-    rocker_mass_kg: float = Field(gt=0)
-    rocker_inertia_kgm2: float = Field(gt=0)
-    rocker_arm_1_mm: float = Field(gt=0, description="r1: H3 to hinge 1")
-    rocker_arm_2_mm: float = Field(gt=0, description="r2: H3 to hinge 2")
-    link_mass_kg: float = Field(gt=0)
-    link_inertia_kgm2: float = Field(gt=0)
-    link_length_mm: float = Field(gt=0, description="Lc: hinge 2 to hinge 4")
-    rudder_inertia_kgm2: float = Field(gt=0, description="J_D: rocker arm, rudder, disk")
-    rudder_arm_mm: float = Field(gt=0, description="r4: O to hinge 4")
-    rudder_damping_Nms_per_rad: float = Field(ge=0)
-    pin_radius_mm: float = Field(gt=0)
-    hinge_clearance_mm: tuple[float, float, float, float] = Field(
+    actuator_pivot_mm: Point_mm = Field(description="A0, bearing housing 1")
+    rocker_pivot_mm: Point_mm = Field(description="H3, bearing housing 3")
+    rudder_shaft_mm: Point_mm = Field(description="O, bearing housings 1/2")
+    rod_length_mm: float = Field(gt=0, le=1e4, description="L0: A0 to the rod end at mid stroke")
+    actuator_inertia_kgm2: float = Field(gt=0, le=1e4, description="I_E: actuator body about A0")
+    rod_mass_kg: float = Field(gt=0, le=1e4)
+    rocker_mass_kg: float = Field(gt=0, le=1e4)
+    rocker_inertia_kgm2: float = Field(gt=0, le=1e4)
+    rocker_arm_1_mm: float = Field(gt=0, le=1e4, description="r1: H3 to hinge 1")
+    rocker_arm_2_mm: float = Field(gt=0, le=1e4, description="r2: H3 to hinge 2")
+    link_mass_kg: float = Field(gt=0, le=1e4)
+    link_inertia_kgm2: float = Field(gt=0, le=1e4)
+    link_length_mm: float = Field(gt=0, le=1e4, description="Lc: hinge 2 to hinge 4")
+    rudder_inertia_kgm2: float = Field(gt=0, le=1e4, description="J_D: rocker arm, rudder, disk")
+    rudder_arm_mm: float = Field(gt=0, le=1e4, description="r4: O to hinge 4")
+    rudder_damping_Nms_per_rad: float = Field(ge=0, le=1e6)
+    pin_radius_mm: float = Field(gt=0, le=1e3)
+    hinge_clearance_mm: numbers(N_HINGES, ge=0, le=10) = Field(
         description="radial clearance of hinges 1, 2, 3, 4"
     )
     contact: contact.ContactParams

@@ -25,42 +25,44 @@ from .linkage import LinkageParams
 class MotorParams(Strict):
     """PMSM and its drive limits."""
 
-    resistance_ohm: float = Field(gt=0, description="stator resistance Rs")
-    inductance_d_H: float = Field(gt=0, description="d-axis inductance Ld")
-    inductance_q_H: float = Field(gt=0, description="q-axis inductance Lq")
-    flux_linkage_Wb: float = Field(gt=0, description="permanent-magnet flux linkage psi_f")
-    inertia_kgm2: float = Field(gt=0, description="rotor (+ screw) inertia J")
-    viscous_Nms_per_rad: float = Field(ge=0, description="viscous damping B")
+    resistance_ohm: float = Field(gt=0, le=1e3, description="stator resistance Rs")
+    inductance_d_H: float = Field(gt=0, le=10, description="d-axis inductance Ld")
+    inductance_q_H: float = Field(gt=0, le=10, description="q-axis inductance Lq")
+    flux_linkage_Wb: float = Field(gt=0, le=10, description="permanent-magnet flux linkage psi_f")
+    inertia_kgm2: float = Field(
+        ge=1e-9, le=1e6, description="rotor (+ screw) inertia J (1e6: a locked rotor)"
+    )
+    viscous_Nms_per_rad: float = Field(ge=0, le=1e4, description="viscous damping B")
     pole_pairs: int = Field(ge=1, le=64, description="pole pairs np")
-    dc_bus_V: float = Field(gt=0, description="DC-link voltage Udc")
-    max_current_A: float = Field(gt=0, description="q-axis current limit of the drive")
-    max_speed_rpm: float = Field(gt=0, description="speed command limit")
+    dc_bus_V: float = Field(gt=0, le=1e4, description="DC-link voltage Udc")
+    max_current_A: float = Field(gt=0, le=1e4, description="q-axis current limit of the drive")
+    max_speed_rpm: float = Field(gt=0, le=1e5, description="speed command limit")
 
 
 class DrivetrainParams(Strict):
     """Gearbox and planetary roller screw (ratio and efficiency kept apart)."""
 
-    gear_ratio: float = Field(gt=0, description="N = Z2/Z1, motor turns per screw turn")
+    gear_ratio: float = Field(gt=0, le=1e3, description="N = Z2/Z1, motor turns per screw turn")
     gear_efficiency: float = Field(gt=0, le=1)
-    screw_lead_mm: float = Field(gt=0, description="lead L = starts * pitch")
+    screw_lead_mm: float = Field(gt=0, le=100, description="lead L = starts * pitch")
     screw_efficiency: float = Field(gt=0, le=1)
-    stroke_mm: float = Field(gt=0, description="usable rod stroke")
+    stroke_mm: float = Field(gt=0, le=1e4, description="usable rod stroke")
 
 
 class FrictionParams(Strict):
     """Friction on the motor/screw shaft (rotational form, N*m and rad)."""
 
     model: Literal["lugre", "coulomb", "none"] = "lugre"
-    coulomb_Nm: float = Field(ge=0, description="Coulomb level Tc")
-    static_Nm: float = Field(ge=0, description="stiction level Ts >= Tc")
-    stribeck_speed_rad_s: float = Field(gt=0, description="Stribeck speed ws")
-    bristle_stiffness_Nm_per_rad: float = Field(gt=0, description="sigma0")
+    coulomb_Nm: float = Field(ge=0, le=1e4, description="Coulomb level Tc")
+    static_Nm: float = Field(ge=0, le=1e4, description="stiction level Ts >= Tc")
+    stribeck_speed_rad_s: float = Field(gt=0, le=1e4, description="Stribeck speed ws")
+    bristle_stiffness_Nm_per_rad: float = Field(gt=0, le=1e12, description="sigma0")
     bristle_damping_ratio: float = Field(
         ge=0, le=10, description="zeta of the presliding mode, sets sigma1"
     )
-    viscous_Nms_per_rad: float = Field(ge=0, description="sigma2")
+    viscous_Nms_per_rad: float = Field(ge=0, le=1e4, description="sigma2")
     smoothing_speed_rad_s: float = Field(
-        gt=0, description="coulomb model only: tanh(w/ws) replaces sign(w)"
+        gt=0, le=1e4, description="coulomb model only: tanh(w/ws) replaces sign(w)"
     )
 
     @model_validator(mode="after")
@@ -76,26 +78,30 @@ class BacklashParams(Strict):
     """Total drive-train backlash between the nut (motor side) and the rod (load side)."""
 
     width_mm: float = Field(ge=0, le=10, description="total gap 2b")
-    stiffness_N_per_m: float = Field(gt=0, description="contact stiffness K")
+    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="contact stiffness K")
     damping_ratio: float = Field(ge=0, le=10, description="contact damping ratio on reduced mass")
 
 
 class LoadParams(Strict):
     """Load side: rod and a lumped rudder stage (rudder angle = rod position / arm)."""
 
-    rod_mass_kg: float = Field(gt=0)
-    rudder_arm_mm: float = Field(gt=0, description="lever from rod travel to rudder angle")
-    rudder_inertia_kgm2: float = Field(ge=0, description="rudder shaft + inertia disk")
-    viscous_Ns_per_m: float = Field(ge=0, description="load-side viscous damping")
+    rod_mass_kg: float = Field(gt=0, le=1e4)
+    rudder_arm_mm: float = Field(gt=0, le=1e4, description="lever from rod travel to rudder angle")
+    rudder_inertia_kgm2: float = Field(ge=0, le=1e4, description="rudder shaft + inertia disk")
+    viscous_Ns_per_m: float = Field(ge=0, le=1e7, description="load-side viscous damping")
 
 
 class SensorChannel(Strict):
     """One measurement channel, in the channel's SI unit (rad/s, rad, m, m/s, A, N, rad)."""
 
-    resolution: float = Field(default=0.0, ge=0, description="quantum, 0 = not quantised")
-    noise_std: float = Field(default=0.0, ge=0, description="Gaussian noise standard deviation")
-    offset: float = Field(default=0.0, description="constant bias")
-    gap_width: float = Field(default=0.0, ge=0, description="total play read through, 0 = none")
+    resolution: float = Field(default=0.0, ge=0, le=1e3, description="quantum, 0 = not quantised")
+    noise_std: float = Field(
+        default=0.0, ge=0, le=1e3, description="Gaussian noise standard deviation"
+    )
+    offset: float = Field(default=0.0, ge=-1e3, le=1e3, description="constant bias")
+    gap_width: float = Field(
+        default=0.0, ge=0, le=1.0, description="total play read through, 0 = none"
+    )
 
 
 class SensorParams(Strict):
@@ -119,6 +125,34 @@ class SensorParams(Strict):
         return table
 
 
+LINKAGE_CHECK_POINTS = 101  # rod extensions at which the linkage must close
+
+
+def check_linkage_closes(linkage: LinkageParams, stroke_mm: float) -> None:
+    """Raise ValueError unless the rigid linkage closes at every rod extension of the stroke
+    and its rudder angle rises or falls strictly along it."""
+    q = linkage.pack()
+    half = 0.5 * stroke_mm * MM
+    angles = []
+    for s in np.linspace(-half, half, LINKAGE_CHECK_POINTS):
+        try:
+            pose = L.rigid_pose(float(s), q)
+        except (ValueError, ArithmeticError):
+            pose = np.full(L.N_LINK, np.nan)
+        if not np.all(np.isfinite(pose)):
+            raise ValueError(
+                f"linkage: the geometry cannot close at rod extension {s / MM:+.4g} mm of the "
+                f"+-{half / MM:g} mm stroke (check the pivots, arms and lengths)"
+            )
+        angles.append(pose[L.TD])
+    steps = np.diff(np.unwrap(angles))
+    if not (np.all(steps > 0) or np.all(steps < 0)):
+        raise ValueError(
+            "linkage: the rudder angle does not rise (or fall) steadily over the stroke, so a "
+            "rudder angle would not name one rod position (check the geometry)"
+        )
+
+
 class PlantParams(Strict):
     """The whole actuator: motor, drive train, friction, backlash, load.
 
@@ -133,6 +167,22 @@ class PlantParams(Strict):
     backlash: BacklashParams
     load: LoadParams
     linkage: LinkageParams | None = None
+
+    @model_validator(mode="after")
+    def _physically_consistent(self):
+        """Every derived quantity exists: the packed parameters are finite (sigma1 >= 0, the
+        contact damping real), and a linkage closes over the whole stroke with its rudder
+        angle strictly monotonic in the rod extension (so a rudder reference has one rod
+        position)."""
+        try:
+            packed = self.pack()
+        except (ValueError, ArithmeticError) as err:
+            raise ValueError(f"inconsistent plant: {err}") from None
+        if not np.all(np.isfinite(packed)):
+            raise ValueError("inconsistent plant: a derived parameter is not finite")
+        if self.linkage is not None:
+            check_linkage_closes(self.linkage, self.drivetrain.stroke_mm)
+        return self
 
     @property
     def ratio_m_per_rad(self) -> float:

@@ -1,5 +1,10 @@
-"""Find, read and override scenarios; turn every validation failure into one clear line."""
+"""Find, read and override scenarios; turn every validation failure into one clear line.
 
+A scenario file must be UTF-8 TOML of at most MAX_FILE_BYTES, nested at most MAX_DEPTH deep,
+with no control characters in its strings; anything else is refused with one line naming it.
+"""
+
+import difflib
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -9,6 +14,10 @@ from pydantic import BaseModel, ValidationError
 from ..control.registry import CASCADES, CONTROLLERS
 from ..errors import InputError
 from .schema import Scenario
+
+MAX_FILE_BYTES = 16 * 2**20  # a scenario with a long table signal is a few MB
+MAX_DEPTH = 16  # tables and arrays within each other; the deepest schema path is 6
+_CONTROL = {chr(c) for c in range(32)} - {"\t", "\n", "\r"} | {"\x7f"}
 
 
 def builtin_scenarios() -> dict[str, Path]:
@@ -31,9 +40,47 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
             )
         source = str(path)
     try:
-        return tomllib.loads(path.read_text()), source
+        if path.stat().st_size > MAX_FILE_BYTES:
+            raise InputError(f"scenario: {path} is larger than {MAX_FILE_BYTES // 2**20} MB")
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise InputError(
+            f"scenario: {path} is not UTF-8 text (byte {err.start}); save it as UTF-8 TOML"
+        ) from None
+    except OSError as err:
+        raise InputError(f"scenario: cannot read {path} ({err.strerror or err})") from None
+    raw = parse_toml(text, f"scenario: {path}")
+    check_raw(raw, source)
+    return raw, source
+
+
+def parse_toml(text: str, what: str) -> dict:
+    """tomllib.loads with its failures (bad syntax, absurd nesting) as one InputError line."""
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise InputError(f"scenario: {path} is not valid TOML: {err}") from None
+        raise InputError(f"{what} is not valid TOML: {err}") from None
+    except RecursionError:
+        raise InputError(f"{what}: nested too deeply (at most {MAX_DEPTH} levels)") from None
+
+
+def check_raw(value, source: str, path: str = "", depth: int = 0) -> None:
+    """Refuse nesting deeper than MAX_DEPTH and strings with control characters (a NUL byte
+    in a name would reach the file system), naming the dotted path."""
+    where = path or "(top level)"
+    if depth > MAX_DEPTH:
+        raise InputError(f"{source}: {where}: nested too deeply (at most {MAX_DEPTH} levels)")
+    if isinstance(value, str):
+        bad = next((ch for ch in value if ch in _CONTROL), None)
+        if bad is not None:
+            raise InputError(f"{source}: {where}: control character {bad!r} in a string; remove it")
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            check_raw(key, source, where, depth + 1)
+            check_raw(item, source, f"{path}.{key}" if path else str(key), depth + 1)
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            check_raw(item, source, f"{path}.{i}", depth + 1)
 
 
 def apply_controller_choice(raw: dict, choice: str) -> None:
@@ -62,14 +109,17 @@ def apply_controller_choice(raw: dict, choice: str) -> None:
 def apply_setting(raw: dict, setting: str) -> None:
     """Apply ``dotted.key=value``; the value is read as TOML (number, bool, string, array)."""
     key, sep, text = setting.partition("=")
-    if not sep or not key:
-        raise InputError(f"--set: expected KEY=VALUE, got '{setting}'")
+    parts = key.split(".")
+    if not sep or not all(parts):
+        raise InputError(f"--set: expected KEY=VALUE with a dotted KEY, got {setting!r}")
     try:
         value = tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         value = text
+    except RecursionError:
+        raise InputError(f"--set {key}: nested too deeply") from None
+    check_raw(value, f"--set {key}")
     table = raw
-    parts = key.split(".")
     for part in parts[:-1]:
         child = table.setdefault(part, {})
         if isinstance(child, str):  # a preset name given as a string: open it up as a table
@@ -113,8 +163,10 @@ def describe_errors(err: ValidationError) -> list[str]:
         prefix = f"{path}: " if path else ""
         if e["type"] == "extra_forbidden":
             allowed = _allowed_keys(loc[:-1])
+            close = difflib.get_close_matches(loc[-1], allowed, n=1) if loc else []
+            hint = f"; did you mean '{close[0]}'?" if close else ""
             keys = f"; allowed: {', '.join(allowed)}" if allowed else ""
-            lines.append(f"{prefix}unknown key{keys}")
+            lines.append(f"{prefix}unknown key{hint}{keys}")
         else:
             msg = e["msg"].removeprefix("Value error, ")
             got = e.get("input")
@@ -123,9 +175,15 @@ def describe_errors(err: ValidationError) -> list[str]:
     return lines
 
 
+UNION_TAGS = {"constant", "step", "sine", "ramp", "table"} | {
+    name for names in CONTROLLERS.values() for name in names
+}
+
+
 def _is_union_tag(part) -> bool:
-    """pydantic puts a union member's tag (e.g. 'step') into the location; leave it out."""
-    return isinstance(part, str) and part in {"constant", "step", "sine", "ramp", "table"}
+    """pydantic puts a union member's tag (a signal type such as 'step', a controller name
+    such as 'pi') into the location; leave it out."""
+    return isinstance(part, str) and part in UNION_TAGS
 
 
 def _allowed_keys(loc: list[str]) -> list[str]:

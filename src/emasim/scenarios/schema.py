@@ -16,6 +16,7 @@ from pydantic import Field, model_validator
 from ..control.current import CurrentPI
 from ..control.pid import SpeedPI
 from ..control.registry import CASCADES, PositionController, SpeedController
+from ..output import slug
 from ..plant import actuator as A
 from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
@@ -23,22 +24,27 @@ from ..plant.presets import PRESETS, SENSOR_PRESETS
 from ..signals import ZERO, Table, Term, combine, encode, signal_value
 from ..sim.setup import Setup, plant_facts
 
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
+MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
+
 
 class Solver(Strict):
     """Sample period of the controllers, integration sub-step, and recording period."""
 
-    sample_period_s: float = Field(default=1e-4, gt=0, le=0.01)
-    step_s: float = Field(default=1e-5, gt=0, le=0.01)
-    record_period_s: float = Field(default=1e-3, gt=0, le=1.0)
+    sample_period_s: float = Field(default=1e-4, ge=1e-6, le=0.01)
+    step_s: float = Field(default=1e-5, ge=1e-8, le=0.01)
+    record_period_s: float = Field(default=1e-3, ge=1e-6, le=1.0)
     communication_step_s: float | None = Field(
         default=None,
-        gt=0,
+        ge=1e-6,
         le=0.1,
         description="co-simulate drive and linkage, exchanging at this step (needs a linkage)",
     )
     mechanism_fmu: str | None = Field(
         default=None,
         min_length=1,
+        max_length=4096,
         description="path of an FMI 2.0 co-simulation FMU that replaces the built-in mechanism "
         "in the co-simulation (inputs rod_velocity_m_s [, rod_position_m], outputs "
         "rudder_angle_rad, rod_force_N; see emasim.sim.fmi); needs communication_step_s",
@@ -64,6 +70,15 @@ class Solver(Strict):
                 raise ValueError(
                     f"{owner} ({of:g} s) must be a whole multiple (>= 1) of {name} ({value:g} s)"
                 )
+        return self
+
+    @model_validator(mode="after")
+    def _substeps_bounded(self):
+        if self.substeps > MAX_SUBSTEPS:
+            raise ValueError(
+                f"sample_period_s / step_s = {self.substeps} sub-steps per sample; at most "
+                f"{MAX_SUBSTEPS} (raise step_s)"
+            )
         return self
 
     @property
@@ -113,6 +128,8 @@ class Reference(Strict):
         half_stroke = 0.5 * plant.drivetrain.stroke_mm * MM
         s_grid = np.linspace(-half_stroke, half_stroke, 501)
         angle_grid = rudder_angle_of_extension(s_grid, q)
+        if angle_grid[-1] < angle_grid[0]:  # monotonic (checked by PlantParams): make it rise
+            s_grid, angle_grid = s_grid[::-1], angle_grid[::-1]
         angle = encode(self.rudder_deg, math.radians(1.0))
         times = np.arange(0.0, duration_s + 1e-3, 1e-3)
         rod = np.interp([signal_value(angle, t) for t in times], angle_grid, s_grid)
@@ -174,9 +191,9 @@ def _from_preset(section, presets: dict, what: str) -> dict:
         return section  # let pydantic report the wrong type
     section = dict(section)
     name = section.pop("preset", next(iter(presets)))
-    if name not in presets:
+    if not isinstance(name, str) or name not in presets:
         choices = ", ".join(presets)
-        raise ValueError(f"{what}.preset: unknown preset '{name}'; choose one of: {choices}")
+        raise ValueError(f"{what}.preset: unknown preset {name!r}; choose one of: {choices}")
     return _merge(presets[name]().model_dump(), section)
 
 
@@ -188,11 +205,12 @@ def _from_cascade(section, scenario: dict):
         return section
     section = dict(section)
     name = section.pop("cascade")
-    if name not in CASCADES:
+    if not isinstance(name, str) or name not in CASCADES:
         choices = ", ".join(CASCADES)
-        raise ValueError(f"controllers.cascade: unknown cascade '{name}'; choose one of: {choices}")
+        raise ValueError(f"controllers.cascade: unknown cascade {name!r}; choose one of: {choices}")
     cascade = dict(CASCADES[name])
-    if "speed_rpm" in scenario.get("reference", {}):
+    reference = scenario.get("reference")
+    if isinstance(reference, dict) and "speed_rpm" in reference:
         cascade.pop("position")
     return _merge(cascade, section)
 
@@ -225,8 +243,14 @@ class Scenario(Strict):
     paper's comparisons); ``controllers`` is what a single run uses.
     """
 
-    name: str = Field(min_length=1, max_length=80)
-    description: str = ""
+    name: str = Field(
+        min_length=1,
+        max_length=80,
+        pattern=NAME_PATTERN,
+        description="letters, digits, '_', '-' and '.', starting with a letter or digit; "
+        "names the run folder, so it can never leave the output root",
+    )
+    description: str = Field(default="", max_length=10_000)
     duration_s: float = Field(gt=0, le=3600)
     seed: int = Field(default=0, ge=0, le=2**32 - 1)
     solver: Solver = Solver()
@@ -266,8 +290,28 @@ class Scenario(Strict):
         labels = [v.label for v in self.compare]
         if len(set(labels)) != len(labels):
             raise ValueError(f"compare labels must differ, got {labels}")
+        folders = [slug(label) for label in labels]
+        for i, folder in enumerate(folders):
+            if folder in folders[:i]:
+                other = labels[folders.index(folder)]
+                raise ValueError(
+                    f"compare.{i}.label: {labels[i]!r} and {other!r} both name the folder "
+                    f"{folder!r}; make them differ in letters or digits"
+                )
         if self.duration_s < self.solver.sample_period_s:
             raise ValueError("duration_s must be at least one solver.sample_period_s")
+        if self.solver.record_period_s > self.duration_s:
+            raise ValueError(
+                f"solver.record_period_s ({self.solver.record_period_s:g} s) must not exceed "
+                f"duration_s ({self.duration_s:g} s)"
+            )
+        rows = self.duration_s / self.solver.record_period_s
+        if rows > MAX_RECORDED_ROWS:
+            raise ValueError(
+                f"duration_s / solver.record_period_s = {rows:.3g} recorded rows; at most "
+                f"{MAX_RECORDED_ROWS:.0e} (raise solver.record_period_s)"
+            )
+        check_reference(self.reference, self.plant, self.duration_s)
         return self
 
     def variants(self) -> list[tuple[str, "Scenario"]]:
@@ -311,7 +355,62 @@ class Scenario(Strict):
             seed=self.seed,
             x0=self.plant.initial_state(),
             limits=state_limits(self.plant, stroke_m),
+            facts=facts,
         )
+
+
+def signal_peak(terms: list, duration_s: float) -> float:
+    """max |y(t)| of a signal over [0, duration_s], in the unit of its key: sampled at 10^4
+    even points plus every step time and table point (a sine's peak is found to 5e-7 of it)."""
+    encoded = encode(terms)
+    times = [np.linspace(0.0, duration_s, 10_001)]
+    for term in terms:
+        times.append(np.atleast_1d(getattr(term, "time_s", [])))
+    grid = np.concatenate(times)
+    grid = grid[(grid >= 0.0) & (grid <= duration_s)]
+    return max(abs(signal_value(encoded, float(t))) for t in grid)
+
+
+def check_reference(reference: Reference, plant: PlantParams, duration_s: float) -> None:
+    """Refuse a set-point the drive cannot physically reach: a speed beyond its
+    max_speed_rpm, a rod position beyond half the stroke, a rudder angle beyond the angle that
+    half the stroke gives (through the lumped arm, or the linkage's rigid kinematics)."""
+    half_stroke_mm = 0.5 * plant.drivetrain.stroke_mm
+    if reference.speed_rpm:
+        peak, limit = signal_peak(reference.speed_rpm, duration_s), plant.motor.max_speed_rpm
+        if peak > limit:
+            raise ValueError(
+                f"reference.speed_rpm reaches {peak:.6g} rpm, beyond the drive's "
+                f"plant.motor.max_speed_rpm = {limit:g}"
+            )
+    elif reference.position_mm:
+        peak = signal_peak(reference.position_mm, duration_s)
+        if peak > half_stroke_mm:
+            raise ValueError(
+                f"reference.position_mm reaches {peak:.6g} mm, beyond the stroke "
+                f"(+-{half_stroke_mm:g} mm: plant.drivetrain.stroke_mm = "
+                f"{plant.drivetrain.stroke_mm:g})"
+            )
+    else:
+        peak = signal_peak(reference.rudder_deg, duration_s)
+        limit = rudder_limit_deg(plant)
+        if peak > limit:
+            raise ValueError(
+                f"reference.rudder_deg reaches {peak:.6g} deg, beyond the +-{limit:.4g} deg "
+                f"that the stroke (plant.drivetrain.stroke_mm = {plant.drivetrain.stroke_mm:g}) "
+                "gives"
+            )
+
+
+def rudder_limit_deg(plant: PlantParams) -> float:
+    """The largest rudder angle reachable both ways within the stroke (deg)."""
+    half_stroke_m = 0.5 * plant.drivetrain.stroke_mm * MM
+    if plant.linkage is None:
+        return math.degrees(half_stroke_m / (plant.load.rudder_arm_mm * MM))
+    ends = rudder_angle_of_extension(
+        np.array([-half_stroke_m, half_stroke_m]), plant.linkage.pack()
+    )
+    return math.degrees(float(np.min(np.abs(ends))))
 
 
 def state_limits(plant: PlantParams, stroke_m: float) -> np.ndarray:

@@ -10,9 +10,17 @@ distributed Client's) to run elsewhere.
 import dask
 
 
-def run_all(scenarios, scheduler="threads") -> list:
-    """Simulate scenarios (single runs) in parallel; return their Results in order."""
+def run_all(scenarios, scheduler="threads", trust_fmu: bool = False, labels=None) -> list:
+    """Simulate scenarios (single runs) in parallel; return their Results in order.
+
+    ``labels`` name the runs (one per scenario); ``trust_fmu`` as in ``run_scenario``.
+    """
     from .runner import run_scenario
 
-    tasks = [dask.delayed(run_scenario)(scenario) for scenario in scenarios]
+    scenarios = list(scenarios)
+    labels = list(labels) if labels is not None else [None] * len(scenarios)
+    tasks = [
+        dask.delayed(run_scenario)(scenario, trust_fmu=trust_fmu, label=label)
+        for scenario, label in zip(scenarios, labels, strict=True)
+    ]
     return list(dask.compute(*tasks, scheduler=scheduler))

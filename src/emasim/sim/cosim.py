@@ -12,7 +12,8 @@ communication step Tc:
 
 With ``solver.mechanism_fmu`` set, an FMI 2.0 FMU loaded with fmpy takes the mechanism's place
 (:class:`emasim.sim.fmi.FmuMechanism`): the master sets its rod position and velocity, steps it
-over the same interval and reads back the rudder angle and the rod force.
+over the same interval and reads back the rudder angle and the rod force. Loading an FMU runs
+the code inside it, so it needs ``trust_fmu=True`` (the command line's ``--trust-fmu``).
 
 The force reaches the drive one communication step late, which is what limits this scheme. In
 the compiled loop the two are solved together (plant.actuator with the linkage): the reference
@@ -33,12 +34,14 @@ from .mechanism import advance
 ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
 
 
-def cosimulate(scenario, communication_step_s: float):
+def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     """Run a scenario whose plant has the linkage as a drive/mechanism co-simulation.
 
     Returns the drive's Result with the rudder angle and the linkage states replaced by the
-    mechanism's, held between communication points.
+    mechanism's, held between communication points. ``trust_fmu`` allows the scenario's
+    ``solver.mechanism_fmu`` to be loaded (see :func:`check_fmu_trust`).
     """
+    check_fmu_trust(scenario, trust_fmu)
     plant = scenario.plant
     if plant.linkage is None:
         raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
@@ -96,6 +99,17 @@ def cosimulate(scenario, communication_step_s: float):
     _mechanism_outputs(result, held[rows], linked.plant)
     result.meta["communication_step_s"] = communication_step_s
     return result
+
+
+def check_fmu_trust(scenario, trust_fmu: bool) -> None:
+    """Refuse a scenario that would load an external FMU unless the caller trusts it: an FMU
+    is a shared library (and, for pythonfmu, Python code) that runs inside this process."""
+    path = scenario.solver.mechanism_fmu
+    if path is not None and not trust_fmu:
+        raise InputError(
+            f"solver.mechanism_fmu: loading {path} runs the code inside it; "
+            "pass --trust-fmu (trust_fmu=True in Python) only for an FMU you trust"
+        )
 
 
 def _mechanism_fmu(scenario, step_s: float, rod_position_m: float, y: np.ndarray):

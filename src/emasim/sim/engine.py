@@ -27,6 +27,7 @@ from ..plant import linkage as L
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
+from .diagnosis import likely_cause
 from .result import Result
 
 LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
@@ -348,8 +349,7 @@ def _divergence_message(setup, status) -> str:
     )
     return (
         f"simulation diverged at t = {tick * setup.sample_period_s:.6g} s: state '{name}' {what}. "
-        f"Reduce the integration sub-step (solver.step_s, now {setup.step_s:g} s) "
-        "or check the gains."
+        f"Likely cause: {likely_cause(setup, index)}."
     )
 
 

@@ -125,7 +125,7 @@ def substeps_of(dt: float, step_s: float) -> int:
 # --- export ---------------------------------------------------------------------------------
 
 
-def export_plant_fmu(path, plant=None) -> Path:
+def export_plant_fmu(path, plant=None, force: bool = False) -> Path:
     """Write the plant (drive and load side) as an FMI 2.0 co-simulation FMU; return its path.
 
     ``plant`` is a :class:`~emasim.plant.parameters.PlantParams` (default: the
@@ -133,6 +133,7 @@ def export_plant_fmu(path, plant=None) -> Path:
     the FMU (resource ``emasim_plant.json``). The FMU runs emasim's compiled plant in the
     Python of the process that loads it, so emasim (with numpy and numba) must be installed
     there. Variables: see the module docstring (:data:`PLANT_INPUTS`, :data:`PLANT_OUTPUTS`).
+    An existing file is replaced only if it is an emasim FMU and ``force`` is set.
     """
     from .. import __version__
 
@@ -148,10 +149,10 @@ def export_plant_fmu(path, plant=None) -> Path:
         "state_names": list(A.STATE_NAMES),
         "plant_params": plant.model_dump(mode="json"),
     }
-    return _build(path, PLANT_SCRIPT, PLANT_RESOURCE, payload)
+    return _build(path, PLANT_SCRIPT, PLANT_RESOURCE, payload, force)
 
 
-def export_mechanism_fmu(path, plant=None) -> Path:
+def export_mechanism_fmu(path, plant=None, force: bool = False) -> Path:
     """Write the linkage alone (rod driven) as an FMI 2.0 co-simulation FMU; return its path.
 
     ``plant`` is a :class:`~emasim.plant.parameters.PlantParams` with a linkage (default: the
@@ -176,7 +177,7 @@ def export_mechanism_fmu(path, plant=None) -> Path:
         "linkage": plant.linkage.pack().tolist(),
         "linkage_params": plant.linkage.model_dump(mode="json"),
     }
-    return _build(path, MECHANISM_SCRIPT, MECHANISM_RESOURCE, payload)
+    return _build(path, MECHANISM_SCRIPT, MECHANISM_RESOURCE, payload, force)
 
 
 def read_resource(folder, name: str) -> dict:
@@ -184,16 +185,29 @@ def read_resource(folder, name: str) -> dict:
     return json.loads((Path(folder) / name).read_text())
 
 
-def _build(path, script: str, resource_name: str, payload: dict) -> Path:
-    """Build an FMU from a slave script of emasim.sim.fmu and a JSON resource, atomically."""
+def is_emasim_fmu(path: Path) -> bool:
+    """True for an FMU (zip) that carries one of emasim's resources: one emasim exported."""
+    import zipfile
+
+    wanted = {f"resources/{PLANT_RESOURCE}", f"resources/{MECHANISM_RESOURCE}"}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return bool(wanted & set(archive.namelist()))
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
+def _build(path, script: str, resource_name: str, payload: dict, force: bool) -> Path:
+    """Build an FMU from a slave script of emasim.sim.fmu and a JSON resource, then put it in
+    place atomically (emasim.output.write_file: never over a file emasim did not write)."""
     from pythonfmu import FmuBuilder
+
+    from ..output import check_file, write_file
 
     target = Path(path)
     if target.suffix != ".fmu":
-        raise InputError(f"'{target}': an FMU file name must end in .fmu")
-    if target.is_dir():
-        raise InputError(f"'{target}' is a folder; give a file name ending in .fmu")
-    target.parent.mkdir(parents=True, exist_ok=True)
+        raise InputError(f"--out {target}: an FMU file name must end in .fmu")
+    check_file(target, force, is_emasim_fmu, "--out")
     saved_path = list(sys.path)  # the builder puts the script's folder on sys.path
     with (
         resources.as_file(resources.files("emasim.sim.fmu") / script) as script_file,
@@ -201,13 +215,13 @@ def _build(path, script: str, resource_name: str, payload: dict) -> Path:
     ):
         resource = Path(tmp) / resource_name
         resource.write_text(json.dumps(payload))  # floats as repr: they read back exactly
-        partial = target.with_name(f".{target.name}.tmp.fmu")
         try:
-            built = FmuBuilder.build_FMU(script_file, dest=partial, project_files=[resource])
-            Path(built).replace(target)
+            built = FmuBuilder.build_FMU(
+                script_file, dest=Path(tmp) / "built.fmu", project_files=[resource]
+            )
         finally:
             sys.path[:] = saved_path
-            partial.unlink(missing_ok=True)
+        write_file(target, Path(built), force=force, is_ours=is_emasim_fmu, what="--out")
     return target
 
 

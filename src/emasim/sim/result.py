@@ -4,13 +4,13 @@ A run folder holds ``result.parquet`` (traces), ``metrics.json``, ``scenario.tom
 resolved scenario), ``meta.json`` (package version, seed, wall time of the simulation) and
 ``plot.png``. A comparison folder holds one such folder per controller set, named by its label,
 and beside them ``comparison.png``, ``metrics.json`` (label -> metrics), ``scenario.toml`` and
-``meta.json``. Folders are written under a temporary name and renamed into place, so a crash
-never leaves half a result.
+``meta.json``. Folders are written by :func:`emasim.output.write_folder`: under a temporary name
+and renamed into place, so a crash never leaves half a result, and never over anything emasim
+did not write (replacing an earlier emasim result needs ``force=True``). Without a folder,
+``save()`` picks a fresh one, ``runs/<scenario>/<label>-<time>``.
 """
 
 import json
-import shutil
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +19,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
+
+from ..output import RUNS_ROOT, fresh_folder, json_text, slug, write_folder
 
 RPM_PER_RAD_S = 30.0 / np.pi
 
@@ -62,9 +64,12 @@ class Result:
 
             save_figure(plot_result(self), folder / "plot.png")
 
-    def save(self, folder: str | Path, plot: bool = True) -> Path:
-        """Write the run folder atomically (replacing an existing one) and return its path."""
-        return write_atomically(folder, lambda tmp: self.write_files(tmp, plot))
+    def save(
+        self, folder: str | Path | None = None, plot: bool = True, force: bool = False
+    ) -> Path:
+        """Write the run folder atomically and return its path (see :func:`default_folder`
+        when ``folder`` is None); ``force`` replaces an earlier emasim result there."""
+        return _save(self, folder, plot, force, "run")
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
@@ -106,9 +111,11 @@ class Comparison:
                 plot_comparison(self.results, self.scenario.get("name")), folder / "comparison.png"
             )
 
-    def save(self, folder: str | Path, plot: bool = True) -> Path:
-        """Write the comparison folder atomically and return its path."""
-        return write_atomically(folder, lambda tmp: self.write_files(tmp, plot))
+    def save(
+        self, folder: str | Path | None = None, plot: bool = True, force: bool = False
+    ) -> Path:
+        """Write the comparison folder atomically and return its path (see :meth:`Result.save`)."""
+        return _save(self, folder, plot, force, "comparison")
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
@@ -122,38 +129,23 @@ class Comparison:
         )
 
 
-def slug(label: str) -> str:
-    """A folder name for a label: letters, digits and dashes."""
-    return "".join(ch if ch.isalnum() else "-" for ch in label.lower()).strip("-") or "run"
+def default_folder(scenario: dict, what: str) -> Path:
+    """A fresh folder for a result: ``runs/<scenario name>/<what>-<YYYYmmdd-HHMMSS>``."""
+    return fresh_folder(RUNS_ROOT / slug(scenario.get("name", "run")), what)
+
+
+def _save(result, folder, plot: bool, force: bool, kind: str) -> Path:
+    what = "compare" if kind == "comparison" else result.meta.get("label", "run")
+    if folder is None:
+        target, unique = default_folder(result.scenario, what), True
+    else:
+        target, unique = Path(folder), False
+    return write_folder(
+        target, lambda tmp: result.write_files(tmp, plot), force=force, unique=unique, kind=kind
+    )
 
 
 def _write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:
-    (folder / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
-    (folder / "meta.json").write_text(json.dumps(meta, indent=2) + "\n")
+    (folder / "metrics.json").write_text(json_text(metrics))
+    (folder / "meta.json").write_text(json_text(meta))
     (folder / "scenario.toml").write_text(tomli_w.dumps(scenario))
-
-
-def write_atomically(folder: str | Path, write) -> Path:
-    """Call ``write(tmp)`` on a fresh temporary folder beside ``folder``, then move it into
-    place (replacing an old ``folder``); on any error nothing is left behind."""
-    folder = Path(folder)
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.tmp-", dir=folder.parent))
-    try:
-        write(tmp)
-        _replace_dir(tmp, folder)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return folder
-
-
-def _replace_dir(new: Path, target: Path) -> None:
-    """Move the finished folder ``new`` to ``target``; an old ``target`` is removed after."""
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{new.name.rsplit('-', 1)[-1]}")
-        target.rename(old)
-        new.rename(target)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        new.rename(target)

@@ -6,8 +6,8 @@ import platform
 import numba
 
 from .. import __version__
-from ..analysis.report import run_metrics
-from .cosim import cosimulate
+from ..analysis.report import run_metrics, undefined_metrics
+from .cosim import check_fmu_trust, cosimulate
 from .engine import simulate
 from .result import Comparison, Result
 
@@ -26,33 +26,42 @@ def _meta(scenario, wall_s: float) -> dict:
     }
 
 
-def run_scenario(scenario, progress=None) -> Result:
+def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -> Result:
     """Simulate a validated :class:`~emasim.scenarios.schema.Scenario` on the compiled engine.
 
     The Result carries the fully resolved scenario (so the run can be repeated exactly), the
-    metadata (package version, seed, wall time of the simulation alone) and the metrics.
+    metadata (package version, seed, wall time of the simulation alone, the label, and why any
+    metric is undefined) and the metrics. ``trust_fmu`` allows a scenario's
+    ``solver.mechanism_fmu`` to be loaded (its code runs in this process).
     """
+    check_fmu_trust(scenario, trust_fmu)
     if scenario.solver.communication_step_s is not None:
-        result = cosimulate(scenario, scenario.solver.communication_step_s)
+        result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
     else:
         result = simulate(scenario.setup(), progress=progress)
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
     result.meta = _meta(scenario, result.meta["simulation_wall_s"])
+    result.meta["label"] = label or scenario.controllers_label()
     result.metrics = run_metrics(result)
+    undefined = undefined_metrics(result.metrics)
+    if undefined:
+        result.meta["undefined_metrics"] = undefined
     return result
 
 
-def run_comparison(scenario, progress=None) -> Comparison:
+def run_comparison(scenario, progress=None, trust_fmu: bool = False) -> Comparison:
     """Run every controller set of ``scenario.compare`` (or its one set) on the experiment,
     in parallel (emasim.sim.batch); ``progress`` is told 0 at the start and 1 at the end."""
     from .batch import run_all
 
+    check_fmu_trust(scenario, trust_fmu)
     variants = scenario.variants()
     if progress is not None:
         progress(0.0)
-    results = dict(
-        zip((label for label, _ in variants), run_all(v for _, v in variants), strict=True)
+    runs = run_all(
+        (v for _, v in variants), trust_fmu=trust_fmu, labels=[label for label, _ in variants]
     )
+    results = dict(zip((label for label, _ in variants), runs, strict=True))
     if progress is not None:
         progress(1.0)
     wall = sum(r.meta["simulation_wall_s"] for r in results.values())

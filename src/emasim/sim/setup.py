@@ -40,6 +40,7 @@ class Setup:
     seed: int = 0
     x0: np.ndarray = field(default_factory=lambda: np.zeros(A.N_STATE))
     limits: np.ndarray = field(default_factory=lambda: np.full(A.N_STATE, 1e12))
+    facts: PlantFacts | None = None  # the drive's ratings, for diagnosing a divergence
 
     def __post_init__(self):
         for name in ("sample_period_s", "duration_s"):

@@ -1,0 +1,317 @@
+"""Writing results without ever touching anything emasim did not create.
+
+Every folder emasim writes (a run, a comparison, a report) holds a marker file, ``MARKER``,
+written first. A folder is *an emasim result* when it holds that marker. The rules:
+
+* a target that does not exist, or an empty folder, is written;
+* an emasim result is replaced only with ``force=True`` (the command line's ``--force``);
+* anything else (a user's folder, a file, a link) is refused, with or without ``force``.
+
+Files follow the same rules, with ``is_ours`` telling whether an existing file is emasim's
+(an FMU carrying emasim's resource, a tuned scenario carrying emasim's header line).
+
+Writing is atomic. A folder is built under a temporary name beside its target,
+``.<name>.tmp-<pid>-<token>``, and renamed into place; without ``force`` the rename fails if
+anything took the place meanwhile, so two concurrent runs to one place either both succeed or
+the second is refused with one line. A kill at any moment leaves the target complete or absent;
+the temporaries of processes that no longer run are removed by the next write in that folder
+(only names of this exact pattern that hold the marker, or files of this exact pattern).
+
+Default run folders never collide: :func:`fresh_folder` gives
+``runs/<scenario>/<what>-<YYYYmmdd-HHMMSS>`` with a ``-2``, ``-3``... suffix when taken.
+Modes follow the umask (plain ``mkdir`` and ``open``). JSON is written by :func:`json_text`,
+which turns NaN and infinity into ``null``, so every JSON file is valid JSON.
+"""
+
+import contextlib
+import datetime
+import fcntl
+import json
+import math
+import os
+import re
+import secrets
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+from .errors import EmasimError
+
+MARKER = ".emasim-result"
+RUNS_ROOT = Path("runs")
+_LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?:tmp|old)-(?P<pid>\d+)-[0-9a-f]{8}(?:\.[a-z]+)?$")
+_MAX_SUFFIX = 1000
+
+
+class OutputError(EmasimError):
+    """A target cannot be written without losing someone's data, or cannot be written at all."""
+
+
+def slug(label: str) -> str:
+    """A folder name for a label or a scenario name: lower-case letters, digits and dashes."""
+    return "".join(ch if ch.isalnum() else "-" for ch in label.lower()).strip("-") or "run"
+
+
+def stamp() -> str:
+    """Local time to the second, for folder names: ``YYYYmmdd-HHMMSS``."""
+    return datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+
+
+def fresh_folder(root: Path, what: str) -> Path:
+    """``root/<what>-<stamp>``, suffixed ``-2``, ``-3``... until the name is free."""
+    return fresh_file(root, what, "")
+
+
+def fresh_file(root: Path, what: str, suffix: str) -> Path:
+    """``root/<what>-<stamp><suffix>``, with ``-2``, ``-3``... before the suffix until free."""
+    stem = f"{slug(what)}-{stamp()}"
+    for n in range(1, _MAX_SUFFIX):
+        candidate = root / (f"{stem}{suffix}" if n == 1 else f"{stem}-{n}{suffix}")
+        if not os.path.lexists(candidate):
+            return candidate
+    raise OutputError(f"{root}: no free name for {what!r}")
+
+
+def is_emasim_folder(path: Path) -> bool:
+    """True when ``path`` is a real folder (not a link) that holds emasim's marker."""
+    return path.is_dir() and not path.is_symlink() and (path / MARKER).is_file()
+
+
+def _is_empty_folder(path: Path) -> bool:
+    return path.is_dir() and not path.is_symlink() and not any(path.iterdir())
+
+
+def check_parents(path: Path, what: str) -> None:
+    """Refuse a target under a file, or in a folder that cannot be written."""
+    for parent in path.absolute().parents:
+        if os.path.lexists(parent):
+            if not parent.is_dir():
+                raise OutputError(f"{what} {path}: {parent} is a file, not a folder")
+            if not os.access(parent, os.W_OK | os.X_OK):
+                raise OutputError(f"{what} {path}: cannot write in {parent}")
+            return
+
+
+def check_folder(path: Path, force: bool, what: str = "--out") -> None:
+    """Raise OutputError unless a result folder may be written at ``path`` (module rules)."""
+    path = Path(path)
+    check_parents(path, what)
+    if not os.path.lexists(path) or _is_empty_folder(path):
+        return
+    if is_emasim_folder(path):
+        if force:
+            return
+        raise OutputError(
+            f"{what} {path}: holds an emasim result already; add --force to replace it, "
+            "or leave --out out for a fresh folder"
+        )
+    kind = "a link" if path.is_symlink() else "a file" if not path.is_dir() else "a folder"
+    raise OutputError(
+        f"{what} {path}: is {kind} that emasim did not write; emasim never replaces it "
+        "(choose another path)"
+    )
+
+
+def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str) -> None:
+    """Raise OutputError unless a file may be written at ``path`` (module rules)."""
+    path = Path(path)
+    check_parents(path, what)
+    if not os.path.lexists(path):
+        return
+    if path.is_file() and not path.is_symlink() and is_ours(path):
+        if force:
+            return
+        raise OutputError(f"{what} {path}: exists (written by emasim); add --force to replace it")
+    raise OutputError(
+        f"{what} {path}: exists and emasim did not write it; emasim never replaces it "
+        "(choose another path)"
+    )
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def clean_leftovers(folder: Path) -> list[Path]:
+    """Remove the temporaries that killed emasim processes left in ``folder``; return them.
+
+    Only names of the module's temporary pattern whose process no longer runs, and, for a
+    folder, only one that holds the marker (or is empty): nothing of anyone else's.
+    """
+    removed = []
+    if not folder.is_dir():
+        return removed
+    for entry in folder.iterdir():
+        match = _LEFTOVER.match(entry.name)
+        if match is None or _alive(int(match["pid"])) or entry.is_symlink():
+            continue
+        with contextlib.suppress(OSError):
+            if entry.is_dir():
+                if not (is_emasim_folder(entry) or _is_empty_folder(entry)):
+                    continue
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed.append(entry)
+    return removed
+
+
+def _temporary(target: Path, kind: str) -> Path:
+    suffix = target.suffix if kind == "tmp" and target.suffix else ""
+    return target.with_name(
+        f".{target.name}.{kind}-{os.getpid()}-{secrets.token_hex(4)}{suffix.lower()}"
+    )
+
+
+@contextlib.contextmanager
+def _locked(folder: Path):
+    """Hold an exclusive lock on ``folder`` (flock on the folder itself: no lock file)."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+def _prepare(path: Path, what: str) -> Path:
+    """Create the target's parent folders, clean killed runs' leftovers there, and return the
+    name of a temporary beside the target."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise _os_error(what, path, err) from None
+    clean_leftovers(path.parent)
+    return _temporary(path, "tmp")
+
+
+def _os_error(what: str, path: Path, err: OSError) -> OutputError:
+    return OutputError(f"{what} {path}: cannot write ({err.strerror or err})")
+
+
+def write_folder(
+    path: Path,
+    write: Callable[[Path], None],
+    *,
+    force: bool = False,
+    unique: bool = False,
+    kind: str = "run",
+    what: str = "--out",
+) -> Path:
+    """Build a result folder with ``write(tmp)``, move it to ``path`` atomically, return where.
+
+    ``unique``: ``path`` came from :func:`fresh_folder`; if another process takes the name
+    meanwhile, the next free suffix is used instead of refusing. ``kind`` goes into the marker
+    ('run', 'comparison', 'report'). Raises OutputError when the module's rules refuse
+    ``path``, before anything is written.
+    """
+    path = Path(path)
+    check_folder(path, force, what)
+    tmp = _prepare(path, what)
+    try:
+        os.mkdir(tmp)
+    except OSError as err:
+        raise _os_error(what, path, err) from None
+    try:
+        write_marker(tmp, kind)
+        write(tmp)
+        candidates = [path] + [path.with_name(f"{path.name}-{n}") for n in range(2, _MAX_SUFFIX)]
+        for candidate in candidates if unique else candidates[:1]:
+            if _move_into_place(tmp, candidate, force, what, refuse=not unique):
+                return candidate
+        raise OutputError(f"{what} {path}: no free folder name")
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def write_marker(folder: Path, kind: str) -> None:
+    """The marker that makes ``folder`` an emasim result (written before anything else)."""
+    from . import __version__
+
+    (folder / MARKER).write_text(json_text({"kind": kind, "emasim_version": __version__}))
+
+
+def _move_into_place(tmp: Path, path: Path, force: bool, what: str, refuse: bool) -> bool:
+    """Rename ``tmp`` to ``path``; False if the place was taken and ``refuse`` is off."""
+    with _locked(path.parent):
+        if force and is_emasim_folder(path):
+            old = _temporary(path, "old")
+            path.rename(old)
+            tmp.rename(path)
+            shutil.rmtree(old, ignore_errors=True)
+            return True
+        try:
+            tmp.rename(path)  # fails if a non-empty folder or a file took the place meanwhile
+            return True
+        except OSError as err:
+            if not os.path.lexists(path):
+                raise _os_error(what, path, err) from None
+        if not refuse:
+            return False
+        raise OutputError(
+            f"{what} {path}: another process wrote it meanwhile; nothing was replaced"
+        )
+
+
+def write_file(
+    path: Path,
+    content: bytes | str | Path,
+    *,
+    force: bool = False,
+    is_ours: Callable[[Path], bool],
+    what: str,
+) -> Path:
+    """Write a file atomically: ``content`` (bytes, text, or the path of a finished file to
+    copy). Without ``force`` an existing file is never replaced, even one that appears while
+    writing (the new file is hard-linked into place, which fails if the name is taken)."""
+    path = Path(path)
+    check_file(path, force, is_ours, what)
+    tmp = _prepare(path, what)
+    try:
+        if isinstance(content, Path):
+            shutil.copyfile(content, tmp)
+        else:
+            data = content.encode() if isinstance(content, str) else content
+            with open(tmp, "xb") as handle:
+                handle.write(data)
+        if force:
+            os.replace(tmp, path)
+        else:
+            os.link(tmp, path)
+    except FileExistsError:
+        raise OutputError(
+            f"{what} {path}: another process wrote it meanwhile; nothing was replaced"
+        ) from None
+    except OSError as err:
+        raise _os_error(what, path, err) from None
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+    return path
+
+
+def finite_or_none(value):
+    """``value`` with every NaN and infinity (also nested in dicts and lists) set to None."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: finite_or_none(v) for key, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_or_none(v) for v in value]
+    if hasattr(value, "item") and callable(value.item):  # a numpy scalar
+        return finite_or_none(value.item())
+    return value
+
+
+def json_text(value) -> str:
+    """Valid JSON (no NaN or Infinity tokens: they become null), indented, with a newline."""
+    return json.dumps(finite_or_none(value), indent=2, allow_nan=False, default=str) + "\n"

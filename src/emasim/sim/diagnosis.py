@@ -1,0 +1,104 @@
+"""Why a run diverged: the likely cause, for the one-line message that stops it.
+
+The checks, in order:
+
+1. **A mode too fast for the sub-step.** Classic RK4 is stable on an undamped oscillator only
+   while omega h < 2 sqrt(2) (about 2.83) and on a decaying mode while lambda h < 2.78. The
+   plant's fastest modes are the backlash contact, omega = sqrt(K_b / m_r) with m_r the
+   reduced mass of the motor (J / K^2 at the nut) and the load; the bristles of the LuGre
+   friction, omega = sqrt(sigma0 / J); and the stator, lambda = R / min(Ld, Lq).
+2. **A load beyond the drive.** The peak external load seen at the rod (rod force, motor
+   torque / K, rudder torque through the linkage's lever at mid stroke, or the lumped arm,
+   already folded into the rod force) against the stall force of the drive,
+   F_stall = kt I_max eta / K, kt = 1.5 np psi_f.
+3. **A limit that was hit.** The state that left its bound is a speed, a current or the rod
+   position: it ran beyond what the drive allows (the bounds are far outside any real motion).
+
+Otherwise the likely cause is the controller: gains that make the sampled loop unstable.
+"""
+
+import math
+
+import numpy as np
+
+from ..plant import actuator as A
+from ..plant import linkage as L
+from ..signals import signal_value
+
+RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # omega h on the imaginary axis
+RK4_DECAY_LIMIT = 2.78  # lambda h on the negative real axis
+SAFE_FRACTION = 0.5  # suggest a step with this margin below the limit
+LOAD_SAMPLES = 2001
+
+
+def fastest_modes(plant: np.ndarray) -> list[tuple[str, float, float]]:
+    """(element, rate in rad/s or 1/s, the largest stable h) of the plant's stiff modes."""
+    k = plant[A.P_K]
+    motor_mass = plant[A.P_J] / k**2
+    reduced = motor_mass * plant[A.P_ML] / (motor_mass + plant[A.P_ML])
+    omega_backlash = math.sqrt(plant[A.P_KB] / reduced)
+    modes = [("the backlash contact stiffness", omega_backlash, RK4_OSCILLATOR_LIMIT)]
+    if plant[A.P_FRICTION] == A.FRICTION_LUGRE:
+        omega_bristle = math.sqrt(plant[A.P_SIGMA0] / plant[A.P_J])
+        modes.append(("the LuGre bristle stiffness", omega_bristle, RK4_OSCILLATOR_LIMIT))
+    stator = plant[A.P_RS] / min(plant[A.P_LD], plant[A.P_LQ])
+    modes.append(("the stator time constant L/R", stator, RK4_DECAY_LIMIT))
+    return [(name, rate, limit / rate) for name, rate, limit in modes]
+
+
+def peak_rod_load_N(setup) -> float:
+    """The largest |external load| seen at the rod over the run (N)."""
+    plant = setup.plant
+    times = np.linspace(0.0, setup.duration_s, LOAD_SAMPLES)
+    lever = 0.0
+    if plant[A.P_LOAD_MODEL] == A.LOAD_LINKAGE:
+        q = plant[A.P_LINK :]
+        ds = 1e-6
+        lever = abs(L.rigid_pose(ds, q)[L.TD] - L.rigid_pose(-ds, q)[L.TD]) / (2 * ds)
+    loads = [
+        abs(signal_value(setup.rod_load, t))
+        + abs(signal_value(setup.motor_load, t)) / plant[A.P_K]
+        + abs(signal_value(setup.rudder_load, t)) * lever
+        for t in times
+    ]
+    return max(loads)
+
+
+def stall_force_N(setup) -> float | None:
+    """F_stall = kt I_max eta / K (N), or None when the Setup does not know the drive."""
+    if setup.facts is None:
+        return None
+    plant = setup.plant
+    kt = 1.5 * plant[A.P_NP] * plant[A.P_PSI]
+    return kt * setup.facts.max_current_A * plant[A.P_ETA] / plant[A.P_K]
+
+
+def likely_cause(setup, state_index: int) -> str:
+    """One sentence naming the likely cause of a divergence (module docstring)."""
+    h = setup.step_s
+    too_fast = [
+        (name, rate, h_max) for name, rate, h_max in fastest_modes(setup.plant) if h > h_max
+    ]
+    if too_fast:
+        name, rate, h_max = max(too_fast, key=lambda mode: mode[1])
+        return (
+            f"the sub-step solver.step_s = {h:g} s is too large for {name} (a {rate:.3g} 1/s "
+            f"mode; RK4 needs step_s < {h_max:.3g} s): use step_s <= "
+            f"{SAFE_FRACTION * h_max:.2g} s"
+        )
+    stall = stall_force_N(setup)
+    load = peak_rod_load_N(setup)
+    if stall is not None and load > stall:
+        return (
+            f"the load reaches {load:.4g} N at the rod, beyond the {stall:.4g} N the drive can "
+            "hold at its current limit: the load overhauls the actuator"
+        )
+    name = A.STATE_NAMES[state_index]
+    if state_index in (A.X_ID, A.X_IQ):
+        return f"'{name}' ran far beyond the drive's current limit: check the current loop gains"
+    if state_index in (A.X_WM, A.X_VL, A.X_THETA, A.X_XL):
+        return (
+            f"'{name}' ran far beyond the drive's speed and stroke: the loop ran away; check "
+            "the gains and the sign of any user controller"
+        )
+    return "no stiff mode or load explains it: check the controller gains"

@@ -1,0 +1,210 @@
+"""Output safety: nothing emasim did not write is ever deleted, renamed or replaced.
+
+The rules of emasim.output, each checked on real folders: a user's folder, file or link is
+refused with or without force; an emasim result needs force; a write is atomic and leaves no
+temporary behind on failure; leftovers of dead processes (and only those) are cleaned; two
+writers to one place never both lose; modes follow the umask; JSON is valid JSON.
+"""
+
+import json
+import os
+import stat
+import subprocess
+import sys
+import threading
+
+import pytest
+
+from emasim.output import (
+    MARKER,
+    OutputError,
+    check_folder,
+    clean_leftovers,
+    fresh_folder,
+    is_emasim_folder,
+    json_text,
+    write_file,
+    write_folder,
+)
+
+
+def fill(tmp):
+    (tmp / "a.txt").write_text("new")
+
+
+def dead_pid() -> int:
+    """The pid of a process that has just exited (so surely not running)."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_a_new_folder_is_written_with_the_marker_and_no_temporary(tmp_path):
+    target = write_folder(tmp_path / "run", fill)
+    assert is_emasim_folder(target) and (target / "a.txt").read_text() == "new"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_a_users_folder_file_or_link_is_never_replaced(tmp_path, force):
+    folder = tmp_path / "mydata"
+    folder.mkdir()
+    (folder / "thesis.tex").write_text("years of work")
+    victim = tmp_path / "victim.txt"
+    victim.write_text("mine")
+    link = tmp_path / "link"
+    link.symlink_to(folder)
+    for target in (folder, victim, link, victim / "sub"):
+        with pytest.raises(OutputError, match="emasim did not write|is a file"):
+            write_folder(target, fill, force=force)
+    assert (folder / "thesis.tex").read_text() == "years of work"
+    assert victim.read_text() == "mine" and link.resolve() == folder.resolve()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "mydata", "victim.txt"]
+
+
+def test_an_emasim_result_is_replaced_only_with_force(tmp_path):
+    target = write_folder(tmp_path / "run", fill)
+    (target / "a.txt").write_text("first")
+    with pytest.raises(OutputError, match="--force"):
+        write_folder(target, fill)
+    assert (target / "a.txt").read_text() == "first"
+    write_folder(target, fill, force=True)
+    assert (target / "a.txt").read_text() == "new" and is_emasim_folder(target)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_an_empty_folder_is_taken(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert is_emasim_folder(write_folder(tmp_path / "empty", fill))
+
+
+def test_a_failing_write_leaves_nothing(tmp_path):
+    def broken(tmp):
+        (tmp / "half").write_text("x")
+        raise KeyboardInterrupt  # a Ctrl-C in the middle of the save
+
+    with pytest.raises(KeyboardInterrupt):
+        write_folder(tmp_path / "run", broken)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_leftovers_of_dead_processes_and_only_those_are_removed(tmp_path):
+    pid = dead_pid()
+    ours = tmp_path / f".run.tmp-{pid}-abcdef12"
+    ours.mkdir()
+    (ours / MARKER).write_text("{}")
+    ours_old = tmp_path / f".run.old-{pid}-0123abcd"
+    ours_old.mkdir()
+    (ours_old / MARKER).write_text("{}")
+    users = tmp_path / f".notes.tmp-{pid}-abcdef12"  # our pattern, but no marker: a user's
+    users.mkdir()
+    (users / "keep.txt").write_text("mine")
+    alive = tmp_path / f".run.tmp-{os.getpid()}-abcdef12"  # a live process's: in use
+    alive.mkdir()
+    (alive / MARKER).write_text("{}")
+    similar = tmp_path / ".run.tmp-xyz"  # not our pattern
+    similar.mkdir()
+    assert sorted(clean_leftovers(tmp_path)) == sorted([ours, ours_old])
+    assert (users / "keep.txt").read_text() == "mine" and alive.exists() and similar.exists()
+
+
+def test_the_next_write_cleans_the_leftovers(tmp_path):
+    pid = dead_pid()
+    leftover = tmp_path / f".run.tmp-{pid}-abcdef12"
+    leftover.mkdir()
+    (leftover / MARKER).write_text("{}")
+    write_folder(tmp_path / "other", fill)
+    assert not leftover.exists()
+
+
+def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
+    """Eight threads race to one target without force: exactly one wins, the others are
+    refused with an OutputError, and the folder is complete."""
+    target = tmp_path / "run"
+    start = threading.Barrier(8)
+    outcomes = []
+
+    def writer(n):
+        def content(tmp):
+            (tmp / "who.txt").write_text(str(n))
+            start.wait()
+
+        try:
+            write_folder(target, content)
+            outcomes.append("ok")
+        except OutputError as err:
+            outcomes.append(str(err))
+
+    threads = [threading.Thread(target=writer, args=(n,)) for n in range(8)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert outcomes.count("ok") == 1
+    assert all("meanwhile" in o or "already" in o for o in outcomes if o != "ok")
+    assert is_emasim_folder(target) and (target / "who.txt").read_text().isdigit()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_concurrent_writers_to_fresh_names_all_succeed(tmp_path):
+    start = threading.Barrier(4)
+    written = []
+
+    def writer():
+        def content(tmp):
+            start.wait()
+
+        written.append(write_folder(fresh_folder(tmp_path, "run"), content, unique=True))
+
+    threads = [threading.Thread(target=writer) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(set(written)) == 4 and all(is_emasim_folder(p) for p in written)
+
+
+def test_modes_follow_the_umask(tmp_path):
+    old = os.umask(0o027)
+    try:
+        target = write_folder(tmp_path / "run", fill)
+        path = write_file(tmp_path / "f.txt", "x", is_ours=lambda _: True, what="--save")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o750
+    assert stat.S_IMODE((target / "a.txt").stat().st_mode) == 0o640
+    assert stat.S_IMODE(path.stat().st_mode) == 0o640
+
+
+def test_files_follow_the_same_rules(tmp_path):
+    ours = tmp_path / "tuned.toml"
+    write_file(ours, "# emasim\n", is_ours=lambda p: p.read_text().startswith("# emasim"), what="x")
+    with pytest.raises(OutputError, match="--force"):
+        write_file(ours, "# emasim 2\n", is_ours=lambda p: True, what="x")
+    write_file(ours, "# emasim 2\n", force=True, is_ours=lambda p: True, what="x")
+    assert ours.read_text() == "# emasim 2\n"
+    users = tmp_path / "notes.toml"
+    users.write_text("mine")
+    with pytest.raises(OutputError, match="did not write"):
+        write_file(users, "x", force=True, is_ours=lambda p: False, what="x")
+    assert users.read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.toml", "tuned.toml"]
+
+
+def test_a_folder_that_cannot_be_written_is_one_error(tmp_path):
+    with pytest.raises(OutputError, match="cannot write"):
+        write_folder("/proc/emasim-cannot-write/run", fill)
+    check_folder(tmp_path / "new" / "deeper", force=False)  # creatable: fine
+
+
+def test_json_is_valid_json():
+    text = json_text({"a": float("nan"), "b": [float("inf"), 1.0], "c": {"d": -float("inf")}})
+
+    def no_constants(name):
+        raise ValueError(name)
+
+    assert json.loads(text, parse_constant=no_constants) == {
+        "a": None,
+        "b": [None, 1.0],
+        "c": {"d": None},
+    }
