@@ -191,9 +191,12 @@ def cosim_step(*settings):
 
 def test_a_cosimulation_with_the_mechanism_fmu_matches_the_builtin_mechanism(mechanism_fmu):
     """The FMU steps mechanism.advance with the master's own s0, v, span and sub-step count, so
-    every trace must agree to round-off (measured: identical); 1e-12 of the peak is allowed."""
-    builtin = cosim_step()
-    through_fmu = cosim_step(f"solver.mechanism_fmu={json.dumps(str(mechanism_fmu))}")
+    every trace must agree to round-off (measured: identical); 1e-12 of the peak is allowed.
+    A rudder-shaft load acts on both: the FMU's rudder_torque_Nm has the scenario's sign
+    (positive opposes positive deflection), as the plant FMU's does."""
+    load = 'load.rudder_torque_Nm=[{type="step", time_s=0.1, final=300.0}]'
+    builtin = cosim_step(load)
+    through_fmu = cosim_step(load, f"solver.mechanism_fmu={json.dumps(str(mechanism_fmu))}")
     assert through_fmu.scenario["solver"]["mechanism_fmu"] == str(mechanism_fmu)
     angle = np.degrees(builtin["rudder_angle_rad"])
     assert angle.max() > 5.0  # the rudder is on its way to the 10 deg command

@@ -16,11 +16,6 @@ import math
 import numba as nb
 
 
-def screw_lead(starts: int, pitch_m: float) -> float:
-    """Lead L = n_s p (m per screw revolution)."""
-    return starts * pitch_m
-
-
 def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
     """K = L / (2 pi N): rod travel per motor radian (m/rad)."""
     return lead_m / (2.0 * math.pi * gear_ratio)

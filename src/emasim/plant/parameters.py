@@ -20,6 +20,7 @@ from . import linkage as L
 from .drivetrain import transmission_ratio
 from .friction import bristle_damping_for_ratio
 from .linkage import LinkageParams
+from .motor import torque_constant
 
 
 class MotorParams(Strict):
@@ -174,14 +175,14 @@ class PlantParams(Strict):
         contact damping real), and a linkage closes over the whole stroke with its rudder
         angle strictly monotonic in the rod extension (so a rudder reference has one rod
         position)."""
+        if self.linkage is not None:
+            check_linkage_closes(self.linkage, self.drivetrain.stroke_mm)
         try:
             packed = self.pack()
         except (ValueError, ArithmeticError) as err:
             raise ValueError(f"inconsistent plant: {err}") from None
         if not np.all(np.isfinite(packed)):
             raise ValueError("inconsistent plant: a derived parameter is not finite")
-        if self.linkage is not None:
-            check_linkage_closes(self.linkage, self.drivetrain.stroke_mm)
         return self
 
     @property
@@ -223,7 +224,7 @@ class PlantParams(Strict):
     @property
     def torque_constant_Nm_per_A(self) -> float:
         """kt = 1.5 np psi_f."""
-        return 1.5 * self.motor.pole_pairs * self.motor.flux_linkage_Wb
+        return torque_constant(self.motor.pole_pairs, self.motor.flux_linkage_Wb)
 
     def pack(self) -> np.ndarray:
         """The flat SI parameter array read by the compiled plant."""

@@ -42,7 +42,7 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
     try:
         if path.stat().st_size > MAX_FILE_BYTES:
             raise InputError(f"scenario: {path} is larger than {MAX_FILE_BYTES // 2**20} MB")
-        text = path.read_bytes().decode("utf-8")
+        text = path.read_bytes().decode("utf-8-sig")  # a byte-order mark is fine
     except UnicodeDecodeError as err:
         raise InputError(
             f"scenario: {path} is not UTF-8 text (byte {err.start}); save it as UTF-8 TOML"
@@ -90,7 +90,7 @@ def apply_controller_choice(raw: dict, choice: str) -> None:
     if not sep and choice in CASCADES:
         raw["controllers"] = {"cascade": choice}
         return
-    if not sep or not name:
+    if not sep or not name or not loop:
         raise InputError(
             f"--controller: expected LOOP=NAME or a cascade ({', '.join(CASCADES)}), got '{choice}'"
         )

@@ -81,11 +81,11 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
             span = (k1 - k0) * ts
             substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
             # the rudder load (opposing positive deflection) held at the step's midpoint
-            torque = -signal_value(linked.rudder_load, (k0 * ts) + 0.5 * span)
+            load = signal_value(linked.rudder_load, (k0 * ts) + 0.5 * span)
             if fmu is None:
-                axial = advance(y, s0, (s1 - s0) / span, span, substeps, torque, q, hinges)
+                axial = advance(y, s0, (s1 - s0) / span, span, substeps, -load, q, hinges)
             else:
-                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span, torque)
+                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span, load)
             rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
     finally:
         if fmu is not None:

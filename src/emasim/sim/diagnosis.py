@@ -23,6 +23,7 @@ import numpy as np
 
 from ..plant import actuator as A
 from ..plant import linkage as L
+from ..plant.motor import torque_constant
 from ..signals import signal_value
 
 RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # omega h on the imaginary axis
@@ -69,7 +70,7 @@ def stall_force_N(setup) -> float | None:
     if setup.facts is None:
         return None
     plant = setup.plant
-    kt = 1.5 * plant[A.P_NP] * plant[A.P_PSI]
+    kt = torque_constant(plant[A.P_NP], plant[A.P_PSI])
     return kt * setup.facts.max_current_A * plant[A.P_ETA] / plant[A.P_K]
 
 

@@ -79,7 +79,10 @@ PLANT_OUTPUTS = (
 MECHANISM_INPUTS = (
     ("rod_velocity_m_s", "rod extension rate, held over the step (m/s)"),
     ("rod_position_m", "rod extension at the step's start (m); integrated by the FMU if not set"),
-    ("rudder_torque_Nm", "external torque on the rudder shaft, held over the step (N m)"),
+    (
+        "rudder_torque_Nm",
+        "load torque on the rudder shaft, positive opposing positive deflection, held (N m)",
+    ),
 )
 MECHANISM_OUTPUTS = (
     ("rudder_angle_rad", "rudder angle (rad)"),
@@ -356,7 +359,8 @@ class FmuMechanism:
     of :func:`emasim.sim.mechanism.advance`). Used when present: an input ``rod_position_m``
     (the rod extension at the step's start, set every step and at initialisation, so both
     sides agree on the rod position), an input ``rudder_torque_Nm`` (external torque on the
-    rudder shaft, positive turning it positive), a parameter ``step_s`` (set to the drive's
+    rudder shaft, positive opposing positive deflection, as the plant FMU's and the
+    scenario's ``load.rudder_torque_Nm``), a parameter ``step_s`` (set to the drive's
     sub-step), and
     outputs named as the 16 linkage states (:data:`emasim.plant.linkage.LINK_STATE_NAMES`);
     without them the result's linkage columns are NaN but for the rudder angle and rate
@@ -417,14 +421,15 @@ class FmuMechanism:
         return values[0]
 
     def advance(
-        self, y: np.ndarray, t: float, s0: float, v: float, duration: float, torque: float = 0.0
+        self, y: np.ndarray, t: float, s0: float, v: float, duration: float, load: float = 0.0
     ) -> float:
-        """The FMU over [t, t + duration] with the rod at s0 + v (t' - t) and ``torque`` on the
-        rudder shaft (refused by an FMU without that input, unless 0); y receives its states;
-        returns the axial force of the linkage on the rod at the end, as ``advance``."""
+        """The FMU over [t, t + duration] with the rod at s0 + v (t' - t) and a ``load`` torque
+        on the rudder shaft (positive opposing positive deflection; refused by an FMU without
+        that input, unless 0); y receives its states; returns the axial force of the linkage on
+        the rod at the end, as ``advance``."""
         if self._torque is not None:
-            self.fmu.set_real(self._torque, [torque])
-        elif torque != 0.0:
+            self.fmu.set_real(self._torque, [load])
+        elif load != 0.0:
             raise InputError(f"{self.fmu.path}: the FMU has no input rudder_torque_Nm")
         self.fmu.set_real(self._inputs, [s0, v] if self.sets_position else [v])
         self.fmu.do_step(t, duration)

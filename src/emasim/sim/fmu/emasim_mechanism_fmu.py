@@ -59,7 +59,7 @@ class EmasimMechanism(Fmi2Slave):
             self.y,
             self.rod_position_m,
             self.rod_velocity_m_s,
-            self.rudder_torque_Nm,
+            -self.rudder_torque_Nm,  # a load: positive opposes positive deflection
             self.q,
             np.empty(L.N_LINK),
             self.hinges,
@@ -73,7 +73,7 @@ class EmasimMechanism(Fmi2Slave):
             v,
             step_size,
             substeps_of(step_size, self.step_s),
-            self.rudder_torque_Nm,
+            -self.rudder_torque_Nm,
             self.q,
             self.hinges,
         )
