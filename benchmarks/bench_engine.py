@@ -1,6 +1,6 @@
 """Speed of the engine: real-time factors, start-up times, speed-up over the reference path.
 
-    python benchmarks/bench_engine.py [--json FILE]
+    python benchmarks/bench_engine.py [--quick] [--json FILE]
 
 Real-time factor (RTF) = wall seconds of the simulation alone per simulated second (lower is
 faster; 0.05 means 20x faster than real time), best of three runs in this process with the
@@ -8,6 +8,8 @@ compiled code loaded. Start-up: a fresh ``emasim run speed-step`` process end to
 numba cache, and with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
 Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
 Reproduce: a fresh ``emasim reproduce`` process, every paper experiment and the report.
+``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
+simulated time, one run each, the reference path on QUICK_REFERENCE_S, and no fresh processes.
 """
 
 import argparse
@@ -23,6 +25,9 @@ from emasim.scenarios.loader import builtin_scenarios, load_scenario
 from emasim.sim.engine import simulate
 from emasim.sim.reference import simulate_reference
 
+QUICK_S = 0.05
+QUICK_REFERENCE_S = 0.005
+
 
 def best_of(n, fn):
     best = float("inf")
@@ -33,25 +38,29 @@ def best_of(n, fn):
     return best
 
 
-def real_time_factors() -> dict:
-    out = {}
-    for name in sorted(builtin_scenarios()):
-        scenario = load_scenario(name)
-        setup = scenario.setup()
-        simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
-        out[name] = best_of(3, lambda s=setup: simulate(s)) / scenario.duration_s
-    return out
+def real_time_factor(scenario, runs: int, duration_s: float | None) -> float:
+    """Best wall time of ``runs`` simulations per simulated second (compiled code loaded)."""
+    setup = scenario.setup()
+    if duration_s is not None:
+        setup = setup.with_(duration_s=duration_s)
+    simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
+    return best_of(runs, lambda: simulate(setup)) / setup.duration_s
 
 
-def controller_real_time_factors() -> dict:
+def real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
+    return {
+        name: real_time_factor(load_scenario(name), runs, duration_s)
+        for name in sorted(builtin_scenarios())
+    }
+
+
+def controller_real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
     """RTF of every controller, each on the experiment of its loop (speed-step, position-step)."""
     out = {}
     for loop, scenario_name in (("speed", "speed-step"), ("position", "position-step")):
         for name in CONTROLLERS[loop]:
             scenario = load_scenario(scenario_name, controllers=[f"{loop}={name}"])
-            setup = scenario.setup()
-            simulate(setup.with_(duration_s=setup.sample_period_s * 10))
-            out[f"{loop}={name}"] = best_of(3, lambda s=setup: simulate(s)) / scenario.duration_s
+            out[f"{loop}={name}"] = real_time_factor(scenario, runs, duration_s)
     return out
 
 
@@ -87,7 +96,16 @@ def reproduce_seconds() -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", help="also write the figures to this file")
+    parser.add_argument("--quick", action="store_true", help="a few seconds (module docstring)")
     args = parser.parse_args()
+    if args.quick:
+        results = {
+            "real_time_factor": real_time_factors(1, QUICK_S),
+            "controller_real_time_factor": controller_real_time_factors(1, QUICK_S),
+            "reference": reference_speedup(QUICK_REFERENCE_S),
+        }
+        report(results)
+        return
     results = {"real_time_factor": real_time_factors()}
     results["controller_real_time_factor"] = controller_real_time_factors()
     fresh_process_seconds(None)  # make sure the default cache is warm
@@ -99,25 +117,30 @@ def main() -> None:
         results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
     results["reference"] = reference_speedup()
     results["reproduce_s"] = reproduce_seconds()
+    report(results)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
+def report(results: dict) -> None:
     for name, rtf in results["real_time_factor"].items():
         print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
     for name, rtf in results["controller_real_time_factor"].items():
         print(f"  {name:20s} RTF {rtf:.4f} s/s")
-    print(f"fresh `emasim run speed-step`, warm cache: {results['fresh_run_warm_cache_s']:.2f} s")
-    print(
-        "fresh `emasim run speed-step -c speed=st-gpio`, warm cache: "
-        f"{results['fresh_run_st_gpio_warm_cache_s']:.2f} s"
-    )
-    print(f"fresh `emasim run speed-step`, cold cache: {results['fresh_run_cold_cache_s']:.2f} s")
+    for key, what in (
+        ("fresh_run_warm_cache_s", "fresh `emasim run speed-step`, warm cache"),
+        ("fresh_run_st_gpio_warm_cache_s", "fresh `emasim run speed-step -c speed=st-gpio`, warm"),
+        ("fresh_run_cold_cache_s", "fresh `emasim run speed-step`, cold cache"),
+        ("reproduce_s", "fresh `emasim reproduce` (all experiments, report)"),
+    ):
+        if key in results:
+            print(f"{what}: {results[key]:.2f} s")
     ref = results["reference"]
     print(
-        f"engine vs scipy Radau reference (0.05 s of speed-step): {ref['engine_s']:.4f} s vs "
+        f"engine vs scipy Radau reference: {ref['engine_s']:.4f} s vs "
         f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
     )
-    print(f"fresh `emasim reproduce` (all experiments, report): {results['reproduce_s']:.1f} s")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=2)
 
 
 if __name__ == "__main__":

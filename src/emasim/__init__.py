@@ -9,6 +9,10 @@ compiled sampled-data engine (:mod:`emasim.sim`), the paper's experiments
 
 from importlib.metadata import PackageNotFoundError, version
 
+from .numba_cache import configure as _configure_numba_cache
+
+NUMBA_CACHE_DIR = _configure_numba_cache()  # keyed by the source: never stale (numba_cache.py)
+
 try:
     __version__ = version("emasim")
 except PackageNotFoundError:  # running from a source tree that is not installed

@@ -1,0 +1,56 @@
+"""numba's disk cache, in a folder keyed by the package's source, so it can never go stale.
+
+numba invalidates a cached function when the file that defines it changes, but not when a file
+it calls or reads constants from changes: after an edit to ``plant/actuator.py`` the cached
+machine code of ``sim/engine.run_ticks`` would still hold the old right-hand side. So emasim
+points numba's cache (``NUMBA_CACHE_DIR``) at ``<base>/emasim-<hash>``, where the hash covers
+every ``.py`` file of the installed package: any change to any source file starts a new cache.
+
+``<base>`` is the user's ``NUMBA_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/emasim/numba``
+(``~/.cache/emasim/numba``). :func:`configure` runs when emasim is imported, before any
+compiled function is defined; a child process inherits the keyed folder and keeps it.
+"""
+
+import hashlib
+import os
+import sys
+from pathlib import Path
+
+PACKAGE = Path(__file__).parent
+PREFIX = "emasim-"
+
+
+def source_hash(root: Path = PACKAGE) -> str:
+    """SHA-256 (hex, 16 digits) of every .py file under ``root``: names and bytes."""
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(b"\0")
+        digest.update(path.read_bytes())
+        digest.update(b"\0")
+    return digest.hexdigest()[:16]
+
+
+def default_base() -> Path:
+    """Where keyed caches live when NUMBA_CACHE_DIR is not set."""
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "emasim" / "numba"
+
+
+def keyed_folder(base: Path, digest: str) -> Path:
+    """``base/emasim-<digest>``; a base that is already a keyed folder of this source stays."""
+    name = f"{PREFIX}{digest}"
+    return base if base.name == name else base / name
+
+
+def configure() -> Path:
+    """Point numba's cache at the keyed folder (environment, and numba's live config if numba
+    is imported already); return the folder."""
+    given = os.environ.get("NUMBA_CACHE_DIR")
+    folder = keyed_folder(Path(given) if given else default_base(), source_hash())
+    os.environ["NUMBA_CACHE_DIR"] = str(folder)
+    if "numba" in sys.modules:
+        from numba.core import config
+
+        config.CACHE_DIR = str(folder)
+    return folder

@@ -1,0 +1,43 @@
+"""numba's cache lives in a folder keyed by the whole package's source (emasim.numba_cache).
+
+An edit to any source file must give another cache folder, since numba itself checks only
+the file that defines a function, not the files whose functions and constants it compiles in.
+"""
+
+import os
+import shutil
+import subprocess
+import sys
+
+import emasim
+from emasim.numba_cache import PACKAGE, keyed_folder, source_hash
+
+
+def test_an_edit_anywhere_in_the_package_changes_the_cache_folder(tmp_path):
+    copy = tmp_path / "emasim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = source_hash(copy)
+    assert before == source_hash(PACKAGE)
+    actuator = copy / "plant" / "actuator.py"  # read by the engine, defined elsewhere
+    actuator.write_text(actuator.read_text() + "\n# an edit\n")
+    assert source_hash(copy) != before
+
+
+def test_this_process_and_its_children_use_the_keyed_folder():
+    import numba.core.config
+
+    folder = emasim.NUMBA_CACHE_DIR
+    assert folder.name == f"emasim-{source_hash()}"
+    assert numba.core.config.CACHE_DIR == str(folder) == os.environ["NUMBA_CACHE_DIR"]
+    child = subprocess.run(
+        [sys.executable, "-c", "import emasim; print(emasim.NUMBA_CACHE_DIR)"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert child.stdout.strip() == str(folder)  # inherited, not nested
+
+
+def test_a_users_cache_base_is_kept_as_the_parent(tmp_path):
+    assert keyed_folder(tmp_path, "abc") == tmp_path / "emasim-abc"
+    assert keyed_folder(tmp_path / "emasim-abc", "abc") == tmp_path / "emasim-abc"
