@@ -18,67 +18,98 @@ linkage's axial push and the centripetal term of the swinging actuator,
 and the linkage's 16 states follow the drive's rod. TL(t) is a load torque applied on
 the motor shaft (the paper's TL) and F_L(t) an external force on the rod (from the rudder);
 both are evaluated by the caller.
-States and parameters are flat float64 arrays indexed by the constants below.
+States and parameters are flat float64 arrays indexed by the constants below, which are looked
+up by name in the elements' declarations (emasim.plant.element): the layouts are assembled from
+:data:`ELEMENTS`, never kept by hand.
 """
 
 import numba as nb
 import numpy as np
 
+from ..config import MM, RPM
 from . import friction as fr
 from . import linkage as L
-from .backlash import dead_zone_force
-from .drivetrain import reflected_torque
-from .motor import current_rates, electromagnetic_torque
+from .backlash import BACKLASH, dead_zone_force
+from .drivetrain import TRANSMISSION, reflected_torque
+from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State, assemble
+from .friction import FRICTION
+from .motor import MOTOR, current_rates, electromagnetic_torque
 
-# --- state vector -------------------------------------------------------------------------
-X_ID = 0  # d-axis current, A
-X_IQ = 1  # q-axis current, A
-X_THETA = 2  # motor angle, rad
-X_WM = 3  # motor mechanical speed, rad/s
-X_Z = 4  # LuGre bristle deflection, rad
-X_XL = 5  # rod (load-side) position, m
-X_VL = 6  # rod velocity, m/s
-X_LINK = 7  # first of the linkage's states (zero and idle with the lumped rudder)
-N_STATE = X_LINK + L.N_LINK
-STATE_NAMES = (
-    "id_A",
-    "iq_A",
-    "motor_angle_rad",
-    "motor_speed_rad_s",
-    "bristle_state_rad",
-    "actuator_position_m",
-    "actuator_velocity_m_s",
-    *L.LINK_STATE_NAMES,
+ROD = Element(
+    "rod",
+    "the rod and the lumped rudder stage (rudder angle = rod position / arm), or the rod alone "
+    "when the linkage carries the rudder",
+    states=(
+        State(
+            "actuator_position_m",
+            "m",
+            "rod (load-side) position",
+            atol=1e-14,
+            bound=lambda plant: FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM,
+        ),
+        State(
+            "actuator_velocity_m_s",
+            "m/s",
+            "rod velocity",
+            atol=1e-12,
+            bound=lambda plant: (
+                RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM * plant.ratio_m_per_rad
+            ),
+        ),
+    ),
+    params=(
+        Quantity("load_mass_kg", "kg", "M_L: rod + lumped rudder, or the rod alone"),
+        Quantity("load_viscous_Ns_per_m", "N s/m", "c_L"),
+        Quantity("rudder_arm_m", "m", "lumped stage: rudder angle = x_L / arm"),
+        Quantity("load_model", "1", "LOAD_LUMPED or LOAD_LINKAGE"),
+    ),
+    outputs=(Quantity("rudder_angle_rad", "rad", "rudder angle"),),
 )
 
+# the plant's elements, in the order of the state and parameter vectors
+ELEMENTS = (MOTOR, FRICTION, TRANSMISSION, BACKLASH, ROD, L.LINKAGE)
+PLANT = assemble(ELEMENTS)
+STATE_NAMES = PLANT.states.names
+N_STATE = len(PLANT.states)
+N_PARAMS = len(PLANT.params)
+
+# --- state vector: named index constants, looked up in the declarations -------------------
+X_ID = PLANT.states.index("id_A")
+X_IQ = PLANT.states.index("iq_A")
+X_THETA = PLANT.states.index("motor_angle_rad")
+X_WM = PLANT.states.index("motor_speed_rad_s")
+X_Z = PLANT.states.index("bristle_state_rad")
+X_XL = PLANT.states.index("actuator_position_m")
+X_VL = PLANT.states.index("actuator_velocity_m_s")
+X_LINK = PLANT.state_offset["linkage"]  # the linkage's 16 states (idle with the lumped rudder)
+
 # --- parameter vector (SI), filled by PlantParams.pack ------------------------------------
-P_RS = 0  # stator resistance, ohm
-P_LD = 1  # d inductance, H
-P_LQ = 2  # q inductance, H
-P_PSI = 3  # PM flux linkage, Wb
-P_NP = 4  # pole pairs
-P_J = 5  # rotor inertia, kg m^2
-P_B = 6  # motor viscous damping, N m s/rad
-P_K = 7  # rod metres per motor radian, m/rad
-P_ETA = 8  # drive-train efficiency (gear * screw)
-P_FRICTION = 9  # friction model code (FRICTION_*)
-P_TC = 10  # Coulomb torque, N m
-P_TS = 11  # stiction torque, N m
-P_WS = 12  # Stribeck speed, rad/s
-P_SIGMA0 = 13  # bristle stiffness, N m/rad
-P_SIGMA1 = 14  # bristle damping, N m s/rad
-P_SIGMA2 = 15  # viscous friction, N m s/rad
-P_W_SMOOTH = 16  # smoothing speed of the Coulomb map, rad/s
-P_HALF_GAP = 17  # backlash half-width b, m
-P_KB = 18  # backlash contact stiffness, N/m
-P_CB = 19  # backlash contact damping, N s/m
-P_ML = 20  # load-side mass, kg
-P_CL = 21  # load-side viscous damping, N s/m
-P_ARM = 22  # rudder arm, m (rudder angle = x_L / arm)
-P_UDC = 23  # DC-link voltage, V
-P_LOAD_MODEL = 24  # LOAD_LUMPED or LOAD_LINKAGE
-P_LINK = 25  # first of the linkage's parameters (emasim.plant.linkage layout)
-N_PARAMS = P_LINK + L.N_LINK_PARAMS
+P_RS = PLANT.params.index("stator_resistance_ohm")
+P_LD = PLANT.params.index("inductance_d_H")
+P_LQ = PLANT.params.index("inductance_q_H")
+P_PSI = PLANT.params.index("flux_linkage_Wb")
+P_NP = PLANT.params.index("pole_pairs")
+P_J = PLANT.params.index("rotor_inertia_kgm2")
+P_B = PLANT.params.index("motor_viscous_Nms_per_rad")
+P_UDC = PLANT.params.index("dc_bus_V")
+P_K = PLANT.params.index("ratio_m_per_rad")
+P_ETA = PLANT.params.index("efficiency")
+P_FRICTION = PLANT.params.index("friction_model")
+P_TC = PLANT.params.index("coulomb_Nm")
+P_TS = PLANT.params.index("static_Nm")
+P_WS = PLANT.params.index("stribeck_speed_rad_s")
+P_SIGMA0 = PLANT.params.index("bristle_stiffness_Nm_per_rad")
+P_SIGMA1 = PLANT.params.index("bristle_damping_Nms_per_rad")
+P_SIGMA2 = PLANT.params.index("friction_viscous_Nms_per_rad")
+P_W_SMOOTH = PLANT.params.index("smoothing_speed_rad_s")
+P_HALF_GAP = PLANT.params.index("backlash_half_gap_m")
+P_KB = PLANT.params.index("backlash_stiffness_N_per_m")
+P_CB = PLANT.params.index("backlash_damping_Ns_per_m")
+P_ML = PLANT.params.index("load_mass_kg")
+P_CL = PLANT.params.index("load_viscous_Ns_per_m")
+P_ARM = PLANT.params.index("rudder_arm_m")
+P_LOAD_MODEL = PLANT.params.index("load_model")
+P_LINK = PLANT.param_offset["linkage"]  # the linkage's parameters (emasim.plant.linkage layout)
 
 LOAD_LUMPED = 0
 LOAD_LINKAGE = 1
@@ -186,3 +217,38 @@ def rudder_angle(x, p):
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
         return x[X_LINK + L.TD]
     return x[X_XL] / p[P_ARM]
+
+
+# --- the element outputs of the trace (PLANT.outputs), written by plant_outputs ------------
+O_TORQUE = PLANT.outputs.index("torque_Nm")
+O_FRICTION = PLANT.outputs.index("friction_torque_Nm")
+O_DRIVETRAIN = PLANT.outputs.index("drivetrain_force_N")
+O_RUDDER = PLANT.outputs.index("rudder_angle_rad")
+O_LINKAGE = PLANT.outputs.index(L.LINKAGE.outputs[0].name)
+N_OUTPUTS = len(PLANT.outputs)
+N_LINKAGE_OUTPUTS = len(L.LINKAGE.outputs)
+
+
+@nb.njit(cache=True, error_model="numpy")
+def linkage_outputs(x, p, out):
+    """Rod force and hinge normal forces and penetrations (linkage.LINKAGE.outputs) of state x;
+    NaN with the lumped rudder stage."""
+    if p[P_LOAD_MODEL] != LOAD_LINKAGE:
+        out[:] = np.nan
+        return
+    hinges = np.empty((L.N_HINGES, 2))
+    rates = np.empty(L.N_LINK)
+    out[0] = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], 0.0, p[P_LINK:], rates, hinges)
+    for h in range(L.N_HINGES):  # hinge order in linkage.py: H1, H2, H3, H4 = 0..3
+        out[1 + h] = hinges[h, 1]
+        out[1 + L.N_HINGES + h] = hinges[h, 0]
+
+
+@nb.njit(cache=True, error_model="numpy")
+def plant_outputs(x, p, out):
+    """Write every element output of state x (layout PLANT.outputs) into ``out``."""
+    out[O_TORQUE] = motor_torque(x, p)
+    out[O_FRICTION] = friction(x[X_WM], x[X_Z], p)[0]
+    out[O_DRIVETRAIN] = backlash_force(x, p)
+    out[O_RUDDER] = rudder_angle(x, p)
+    linkage_outputs(x, p, out[O_LINKAGE : O_LINKAGE + N_LINKAGE_OUTPUTS])

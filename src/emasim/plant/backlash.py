@@ -21,6 +21,8 @@ Play operator (position form), for a position read through a gap of half-width b
 
 import numba as nb
 
+from .element import Element, Quantity
+
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def dead_zone_force(dx, dv, half_gap, stiffness, damping):
@@ -48,3 +50,15 @@ def play_operator(x, y_prev, half_gap, gain):
     if lx + half_gap <= y_prev:
         return lx + half_gap
     return y_prev
+
+
+BACKLASH = Element(
+    "backlash",
+    "dead-zone contact between the nut and the rod",
+    params=(
+        Quantity("backlash_half_gap_m", "m", "b"),
+        Quantity("backlash_stiffness_N_per_m", "N/m", "K"),
+        Quantity("backlash_damping_Ns_per_m", "N s/m", "c"),
+    ),
+    outputs=(Quantity("drivetrain_force_N", "N", "contact force of the nut on the rod"),),
+)

@@ -15,6 +15,8 @@ import math
 
 import numba as nb
 
+from .element import Element, Quantity
+
 
 def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
     """K = L / (2 pi N): rod travel per motor radian (m/rad)."""
@@ -28,3 +30,13 @@ def reflected_torque(force, motor_speed, ratio_k, efficiency):
     if torque * motor_speed > 0.0:
         return torque / efficiency
     return torque * efficiency
+
+
+TRANSMISSION = Element(
+    "transmission",
+    "gearbox and roller screw: ratio and efficiency",
+    params=(
+        Quantity("ratio_m_per_rad", "m/rad", "K = L / (2 pi N)"),
+        Quantity("efficiency", "1", "eta = eta_gear eta_screw"),
+    ),
+)

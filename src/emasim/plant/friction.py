@@ -18,6 +18,8 @@ import math
 
 import numba as nb
 
+from .element import FAR_RUNAWAY, Element, Quantity, State
+
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def stribeck(v, fc, fs, vs):
@@ -93,3 +95,33 @@ def bristle_damping_for_ratio(zeta: float, sigma0: float, inertia: float, sigma2
             "raise the ratio or lower sigma2"
         )
     return sigma1
+
+
+FRICTION = Element(
+    "friction",
+    "friction on the motor shaft: LuGre, Coulomb + viscous, or none",
+    states=(
+        State(
+            "bristle_state_rad",
+            "rad",
+            "LuGre bristle deflection (split off RK4, updated exactly)",
+            atol=1e-15,
+            bound=lambda plant: (
+                FAR_RUNAWAY
+                * max(plant.friction.static_Nm, 1e-3)
+                / plant.friction.bristle_stiffness_Nm_per_rad
+            ),
+        ),
+    ),
+    params=(
+        Quantity("friction_model", "1", "FRICTION_NONE, FRICTION_COULOMB or FRICTION_LUGRE"),
+        Quantity("coulomb_Nm", "N m", "Tc"),
+        Quantity("static_Nm", "N m", "Ts"),
+        Quantity("stribeck_speed_rad_s", "rad/s", "ws"),
+        Quantity("bristle_stiffness_Nm_per_rad", "N m/rad", "sigma0"),
+        Quantity("bristle_damping_Nms_per_rad", "N m s/rad", "sigma1"),
+        Quantity("friction_viscous_Nms_per_rad", "N m s/rad", "sigma2"),
+        Quantity("smoothing_speed_rad_s", "rad/s", "Coulomb map: tanh(w/ws) for sign(w)"),
+    ),
+    outputs=(Quantity("friction_torque_Nm", "N m", "friction torque on the motor shaft"),),
+)

@@ -40,36 +40,37 @@ from pydantic import Field
 
 from ..config import MM, Strict, numbers
 from . import contact
+from .element import Element, Quantity, State
 
 # --- state of the linkage (positions, then rates) ----------------------------------------
 PHI, XB, YB, TB, XC, YC, TC, TD = range(8)
 N_POS = 8
 N_LINK = 2 * N_POS
-LINK_STATE_NAMES = tuple(
-    f"linkage_{name}"
-    for name in (
-        "actuator_angle_rad",
-        "rocker_x_m",
-        "rocker_y_m",
-        "rocker_angle_rad",
-        "link_x_m",
-        "link_y_m",
-        "link_angle_rad",
-        "rudder_angle_rad",
-    )
-) + tuple(
-    f"linkage_{name}"
-    for name in (
-        "actuator_rate_rad_s",
-        "rocker_vx_m_s",
-        "rocker_vy_m_s",
-        "rocker_rate_rad_s",
-        "link_vx_m_s",
-        "link_vy_m_s",
-        "link_rate_rad_s",
-        "rudder_rate_rad_s",
-    )
+_POSITIONS = (
+    ("actuator_angle_rad", "rad"),
+    ("rocker_x_m", "m"),
+    ("rocker_y_m", "m"),
+    ("rocker_angle_rad", "rad"),
+    ("link_x_m", "m"),
+    ("link_y_m", "m"),
+    ("link_angle_rad", "rad"),
+    ("rudder_angle_rad", "rad"),
 )
+_RATES = (
+    ("actuator_rate_rad_s", "rad/s"),
+    ("rocker_vx_m_s", "m/s"),
+    ("rocker_vy_m_s", "m/s"),
+    ("rocker_rate_rad_s", "rad/s"),
+    ("link_vx_m_s", "m/s"),
+    ("link_vy_m_s", "m/s"),
+    ("link_rate_rad_s", "rad/s"),
+    ("rudder_rate_rad_s", "rad/s"),
+)
+LINK_STATES = tuple(
+    State(f"linkage_{name}", unit, "linkage state (module docstring)", atol=1e-12)
+    for name, unit in _POSITIONS + _RATES
+)
+LINK_STATE_NAMES = tuple(state.name for state in LINK_STATES)
 
 # --- parameters (SI), filled by LinkageParams.pack ----------------------------------------
 (
@@ -97,6 +98,50 @@ LINK_STATE_NAMES = tuple(
 ) = range(21)
 CONTACT = CLEAR + 4  # the contact law's packed parameters follow the four clearances
 N_LINK_PARAMS = CONTACT + contact.N_CONTACT
+_PARAMS = (  # (name, unit), in the order of the index constants above
+    ("actuator_pivot_x_m", "m"),
+    ("actuator_pivot_y_m", "m"),
+    ("rocker_pivot_x_m", "m"),
+    ("rocker_pivot_y_m", "m"),
+    ("rudder_shaft_x_m", "m"),
+    ("rudder_shaft_y_m", "m"),
+    ("rod_length_m", "m"),
+    ("actuator_inertia_kgm2", "kg m^2"),
+    ("rod_mass_kg", "kg"),
+    ("rocker_mass_kg", "kg"),
+    ("rocker_inertia_kgm2", "kg m^2"),
+    ("rocker_arm_1_m", "m"),
+    ("rocker_arm_2_m", "m"),
+    ("link_mass_kg", "kg"),
+    ("link_inertia_kgm2", "kg m^2"),
+    ("link_length_m", "m"),
+    ("rudder_inertia_kgm2", "kg m^2"),
+    ("rudder_arm_m", "m"),
+    ("rudder_damping_Nms_per_rad", "N m s/rad"),
+    ("pin_radius_m", "m"),
+    *((f"hinge{h}_clearance_m", "m") for h in (1, 2, 3, 4)),
+    ("contact_stiffness_SI", "N/m^e"),
+    ("contact_exponent", "1"),
+    ("contact_damping_Ns_per_m", "N s/m"),
+    ("contact_penetration_depth_m", "m"),
+    ("contact_mu_static", "1"),
+    ("contact_mu_dynamic", "1"),
+    ("contact_stiction_speed_m_s", "m/s"),
+    ("contact_dynamic_speed_m_s", "m/s"),
+)
+assert len(_PARAMS) == N_LINK_PARAMS and contact.N_CONTACT == 8
+LINKAGE_COLUMNS = (
+    Quantity("linkage_rod_force_N", "N", "axial push of the linkage on the rod"),
+    *(Quantity(f"hinge{h}_force_N", "N", f"normal force at hinge {h}") for h in (1, 2, 3, 4)),
+    *(Quantity(f"hinge{h}_penetration_m", "m", f"penetration at hinge {h}") for h in (1, 2, 3, 4)),
+)
+LINKAGE = Element(
+    "linkage",
+    "planar bodies tied by four clearance-joint hinges (ADAMS model)",
+    states=LINK_STATES,
+    params=tuple(Quantity(f"linkage_{name}", unit) for name, unit in _PARAMS),
+    outputs=LINKAGE_COLUMNS,
+)
 
 # bodies
 GROUND, ROD, BODY_B, BODY_C, BODY_D = range(5)

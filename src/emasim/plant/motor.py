@@ -16,7 +16,9 @@ import math
 
 import numba as nb
 
+from ..config import MM, RPM
 from ..numerics import limit_magnitude
+from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State
 
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
@@ -42,3 +44,44 @@ def limit_voltage(u_d, u_q, u_dc):
 def torque_constant(pole_pairs: float, psi_f: float) -> float:
     """kt = 1.5 np psi_f (N*m/A): torque per q-axis ampere with id = 0."""
     return 1.5 * pole_pairs * psi_f
+
+
+def _current_bound(plant) -> float:
+    return RATED_RUNAWAY * plant.motor.max_current_A
+
+
+MOTOR = Element(
+    "motor",
+    "PMSM in dq with the averaged inverter",
+    states=(
+        State("id_A", "A", "d-axis current", atol=1e-9, bound=_current_bound),
+        State("iq_A", "A", "q-axis current", atol=1e-9, bound=_current_bound),
+        State(
+            "motor_angle_rad",
+            "rad",
+            "motor shaft angle",
+            atol=1e-11,
+            bound=lambda plant: (
+                FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM / plant.ratio_m_per_rad
+            ),
+        ),
+        State(
+            "motor_speed_rad_s",
+            "rad/s",
+            "motor mechanical speed",
+            atol=1e-9,
+            bound=lambda plant: RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM,
+        ),
+    ),
+    params=(
+        Quantity("stator_resistance_ohm", "ohm", "Rs"),
+        Quantity("inductance_d_H", "H", "Ld"),
+        Quantity("inductance_q_H", "H", "Lq"),
+        Quantity("flux_linkage_Wb", "Wb", "psi_f"),
+        Quantity("pole_pairs", "1", "np"),
+        Quantity("rotor_inertia_kgm2", "kg m^2", "J"),
+        Quantity("motor_viscous_Nms_per_rad", "N m s/rad", "B"),
+        Quantity("dc_bus_V", "V", "Udc"),
+    ),
+    outputs=(Quantity("torque_Nm", "N m", "electromagnetic torque Te"),),
+)

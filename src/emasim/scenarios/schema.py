@@ -337,7 +337,6 @@ class Scenario(Strict):
         ts = self.solver.sample_period_s
         motor_load, rod_load, rudder_load = self.load.encode(self.plant)
         c = self.controllers
-        stroke_m = self.plant.drivetrain.stroke_mm * MM
         return Setup(
             plant=self.plant.pack(),
             sample_period_s=ts,
@@ -354,7 +353,7 @@ class Scenario(Strict):
             record_every=self.solver.record_every,
             seed=self.seed,
             x0=self.plant.initial_state(),
-            limits=state_limits(self.plant, stroke_m),
+            limits=A.PLANT.limits(self.plant),
             facts=facts,
         )
 
@@ -411,17 +410,3 @@ def rudder_limit_deg(plant: PlantParams) -> float:
         np.array([-half_stroke_m, half_stroke_m]), plant.linkage.pack()
     )
     return math.degrees(float(np.min(np.abs(ends))))
-
-
-def state_limits(plant: PlantParams, stroke_m: float) -> np.ndarray:
-    """Bounds beyond which a state means a runaway simulation (far outside any real motion)."""
-    m = plant.motor
-    limits = np.full(A.N_STATE, 1e3)  # linkage: positions (m, rad) and rates far beyond motion
-    limits[A.X_ID] = limits[A.X_IQ] = 20.0 * m.max_current_A
-    limits[A.X_WM] = 20.0 * m.max_speed_rpm * RPM
-    limits[A.X_THETA] = 1e3 * stroke_m / plant.ratio_m_per_rad
-    f = plant.friction
-    limits[A.X_Z] = 1e3 * max(f.static_Nm, 1e-3) / f.bristle_stiffness_Nm_per_rad
-    limits[A.X_XL] = 1e3 * stroke_m
-    limits[A.X_VL] = 20.0 * m.max_speed_rpm * RPM * plant.ratio_m_per_rad
-    return limits

@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..plant import actuator as A
 from ..plant import linkage as L
 from ..signals import Constant, encode, signal_value
-from .engine import LINKAGE_COLUMNS, EngineRun, linkage_outputs
+from .engine import EngineRun
 from .mechanism import advance
 
 ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
@@ -126,12 +126,12 @@ def _mechanism_fmu(scenario, step_s: float, rod_position_m: float, y: np.ndarray
 
 def _mechanism_outputs(result, linkage_states: np.ndarray, packed: np.ndarray) -> None:
     """Fill the rod force and hinge columns from the mechanism states held at each row."""
-    first = result.columns.index(LINKAGE_COLUMNS[0])
+    first = result.columns.index(L.LINKAGE.outputs[0].name)
     x = np.zeros(A.N_STATE)
     position, velocity = result["actuator_position_m"], result["actuator_velocity_m_s"]
     for i, y in enumerate(linkage_states):
         x[A.X_XL], x[A.X_VL], x[A.X_LINK :] = position[i], velocity[i], y
-        linkage_outputs(x, packed, result.data[i, first : first + len(LINKAGE_COLUMNS)])
+        A.linkage_outputs(x, packed, result.data[i, first : first + A.N_LINKAGE_OUTPUTS])
 
 
 def _rod_only(packed: np.ndarray, rod_mass_kg: float) -> np.ndarray:

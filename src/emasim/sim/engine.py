@@ -24,6 +24,7 @@ from ..errors import SimulationDiverged
 from ..interface import M_ID, M_IQ, M_POSITION, M_SPEED, N_MEAS, N_OUT, N_REF, O_RATE, O_VALUE
 from ..plant import actuator as A
 from ..plant import linkage as L
+from ..plant.element import Layout, Quantity
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
@@ -34,36 +35,49 @@ LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
 LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
 LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
 
-# trace columns: time, the plant state, then the signals below
-# the linkage's push on the rod along its axis, and each hinge's normal force and penetration
-# (NaN with the lumped rudder stage)
-LINKAGE_COLUMNS = (
-    "linkage_rod_force_N",
-    *(f"hinge{h}_force_N" for h in (1, 2, 3, 4)),
-    *(f"hinge{h}_penetration_m" for h in (1, 2, 3, 4)),
+# trace columns: time, the plant's states, the loops' signals, the elements' outputs, the
+# loads, the measurements the controllers saw; each with its unit (TRACE.units())
+CONTROL_COLUMNS = (
+    Quantity("speed_ref_rad_s", "rad/s", "speed command (NaN when the position loop commands iq)"),
+    Quantity("iq_ref_A", "A", "q-axis current command"),
+    Quantity("position_ref_m", "m", "rod position reference (NaN in a speed-loop run)"),
+    Quantity("ud_V", "V", "d-axis stator voltage, limited by the inverter"),
+    Quantity("uq_V", "V", "q-axis stator voltage, limited by the inverter"),
 )
-EXTRA_COLUMNS = (
-    "speed_ref_rad_s",
-    "iq_ref_A",
-    "position_ref_m",
-    "ud_V",
-    "uq_V",
-    "torque_Nm",
-    "friction_torque_Nm",
-    "drivetrain_force_N",
-    "load_torque_Nm",
-    "rod_load_N",
-    "measured_speed_rad_s",
-    "measured_position_m",
-    "rudder_angle_rad",
-    "rudder_load_Nm",
-    *LINKAGE_COLUMNS,
+LOAD_COLUMNS = (
+    Quantity("load_torque_Nm", "N m", "external load torque on the motor shaft"),
+    Quantity("rod_load_N", "N", "external force on the rod, positive opposing extension"),
+    Quantity("rudder_load_Nm", "N m", "load torque on the rudder shaft (linkage)"),
 )
-TRACE_COLUMNS = ("t_s", *A.STATE_NAMES, *EXTRA_COLUMNS)
-LINKAGE_TRACE_COLUMNS = frozenset((*L.LINK_STATE_NAMES, *LINKAGE_COLUMNS))
-C_STATE = 1
-C_EXTRA = 1 + A.N_STATE
-N_COLUMNS = len(TRACE_COLUMNS)
+MEASURED_COLUMNS = (
+    Quantity("measured_speed_rad_s", "rad/s", "speed sensor reading"),
+    Quantity("measured_position_m", "m", "rod position sensor reading"),
+)
+TRACE = Layout(
+    (
+        Quantity("t_s", "s", "time"),
+        *A.PLANT.states.quantities,
+        *CONTROL_COLUMNS,
+        *A.PLANT.outputs.quantities,
+        *LOAD_COLUMNS,
+        *MEASURED_COLUMNS,
+    )
+)
+TRACE_COLUMNS = TRACE.names
+N_COLUMNS = len(TRACE)
+C_STATE = TRACE.index(A.STATE_NAMES[0])
+C_SPEED_REF = TRACE.index("speed_ref_rad_s")
+C_IQ_REF = TRACE.index("iq_ref_A")
+C_POSITION_REF = TRACE.index("position_ref_m")
+C_UD = TRACE.index("ud_V")
+C_UQ = TRACE.index("uq_V")
+C_OUTPUTS = TRACE.index(A.PLANT.outputs.names[0])
+C_MOTOR_LOAD = TRACE.index("load_torque_Nm")
+C_ROD_LOAD = TRACE.index("rod_load_N")
+C_RUDDER_LOAD = TRACE.index("rudder_load_Nm")
+C_MEASURED_SPEED = TRACE.index("measured_speed_rad_s")
+C_MEASURED_POSITION = TRACE.index("measured_position_m")
+LINKAGE_TRACE_COLUMNS = frozenset((*L.LINK_STATE_NAMES, *(q.name for q in L.LINKAGE.outputs)))
 
 # status codes returned by run_ticks
 OK = 0
@@ -182,40 +196,21 @@ def record(
     position_ref,
     meas,
 ):
-    """Write one trace row (layout TRACE_COLUMNS)."""
+    """Write one trace row (layout TRACE)."""
     row[0] = t
     for i in range(A.N_STATE):
         row[C_STATE + i] = x[i]
-    e = C_EXTRA
-    row[e + 0] = speed_ref
-    row[e + 1] = iq_ref
-    row[e + 2] = position_ref
-    row[e + 3] = u_d
-    row[e + 4] = u_q
-    row[e + 5] = A.motor_torque(x, p)
-    row[e + 6] = A.friction(x[A.X_WM], x[A.X_Z], p)[0]
-    row[e + 7] = A.backlash_force(x, p)
-    row[e + 8] = signal_value(motor_load, t)
-    row[e + 9] = signal_value(rod_load, t)
-    row[e + 10] = meas[M_SPEED]
-    row[e + 11] = meas[M_POSITION]
-    row[e + 12] = A.rudder_angle(x, p)
-    row[e + 13] = signal_value(rudder_load, t)
-    linkage_outputs(x, p, row[e + 14 : e + 14 + len(LINKAGE_COLUMNS)])
-
-
-@nb.njit(cache=True, error_model="numpy")
-def linkage_outputs(x, p, out):
-    """Rod force and hinge normal forces and penetrations (LINKAGE_COLUMNS) of state x."""
-    if p[A.P_LOAD_MODEL] != A.LOAD_LINKAGE:
-        out[:] = np.nan
-        return
-    hinges = np.empty((L.N_HINGES, 2))
-    rates = np.empty(L.N_LINK)
-    out[0] = L.linkage_rhs(x[A.X_LINK :], x[A.X_XL], x[A.X_VL], 0.0, p[A.P_LINK :], rates, hinges)
-    for h in range(L.N_HINGES):  # hinge order in linkage.py: H1, H2, H3, H4 = 0..3
-        out[1 + h] = hinges[h, 1]
-        out[1 + L.N_HINGES + h] = hinges[h, 0]
+    row[C_SPEED_REF] = speed_ref
+    row[C_IQ_REF] = iq_ref
+    row[C_POSITION_REF] = position_ref
+    row[C_UD] = u_d
+    row[C_UQ] = u_q
+    A.plant_outputs(x, p, row[C_OUTPUTS : C_OUTPUTS + A.N_OUTPUTS])
+    row[C_MOTOR_LOAD] = signal_value(motor_load, t)
+    row[C_ROD_LOAD] = signal_value(rod_load, t)
+    row[C_RUDDER_LOAD] = signal_value(rudder_load, t)
+    row[C_MEASURED_SPEED] = meas[M_SPEED]
+    row[C_MEASURED_POSITION] = meas[M_POSITION]
 
 
 F8 = types.float64

@@ -64,18 +64,21 @@ PLANT_INPUTS = (
         "positive deflection, held (N m)",
     ),
 )
-PLANT_OUTPUTS = (
-    ("id_A", "d-axis current (A)"),
-    ("iq_A", "q-axis current (A)"),
-    ("motor_angle_rad", "motor shaft angle (rad)"),
-    ("motor_speed_rad_s", "motor mechanical speed (rad/s)"),
-    ("bristle_state_rad", "LuGre bristle deflection (rad)"),
-    ("actuator_position_m", "rod position (m)"),
-    ("actuator_velocity_m_s", "rod velocity (m/s)"),
-    ("rudder_angle_rad", "rudder angle (rad)"),
-    ("drivetrain_force_N", "contact force of the nut on the rod through the backlash (N)"),
-    ("torque_Nm", "electromagnetic torque (N m)"),
+# the drive's states and the element outputs of the plant (the linkage's are in the
+# mechanism FMU), from the elements' declarations
+PLANT_STATE_OUTPUTS = tuple(
+    (s.name, f"{s.description} ({s.unit})")
+    for element in A.ELEMENTS
+    if element is not L.LINKAGE
+    for s in element.states
 )
+PLANT_ELEMENT_OUTPUTS = tuple(
+    (q.name, f"{q.description} ({q.unit})")
+    for element in A.ELEMENTS
+    if element is not L.LINKAGE
+    for q in element.outputs
+)
+PLANT_OUTPUTS = PLANT_STATE_OUTPUTS + PLANT_ELEMENT_OUTPUTS
 MECHANISM_INPUTS = (
     ("rod_velocity_m_s", "rod extension rate, held over the step (m/s)"),
     ("rod_position_m", "rod extension at the step's start (m); integrated by the FMU if not set"),

@@ -20,9 +20,7 @@ from ..signals import signal_value
 from .engine import TRACE_COLUMNS, control_tick, record
 from .result import Result
 
-# absolute tolerances per state: A, A, rad, rad/s, rad (bristle), m, m/s, then the linkage's
-# positions (rad, m) and rates
-ATOL = np.concatenate([[1e-9, 1e-9, 1e-11, 1e-9, 1e-15, 1e-14, 1e-12], np.full(16, 1e-12)])
+ATOL = A.PLANT.atol()  # absolute tolerance of every state, from the elements' declarations
 
 
 @nb.njit(cache=True, error_model="numpy")

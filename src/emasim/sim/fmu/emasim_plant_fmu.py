@@ -16,9 +16,11 @@ from emasim.signals import Constant, encode
 from emasim.sim.fmi import (
     CONSTANT_VALUE,
     DEFAULT_STEP_S,
+    PLANT_ELEMENT_OUTPUTS,
     PLANT_INPUTS,
     PLANT_OUTPUTS,
     PLANT_RESOURCE,
+    PLANT_STATE_OUTPUTS,
     plant_substeps,
     read_resource,
     register_step_and_inputs,
@@ -48,23 +50,25 @@ class EmasimPlant(Fmi2Slave):
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
         self.rudder_torque_Nm = 0.0
         register_step_and_inputs(self, PLANT_INPUTS)
-        x, p = self.x, self.p
-        getters = {
-            "id_A": lambda: x[A.X_ID],
-            "iq_A": lambda: x[A.X_IQ],
-            "motor_angle_rad": lambda: x[A.X_THETA],
-            "motor_speed_rad_s": lambda: x[A.X_WM],
-            "bristle_state_rad": lambda: x[A.X_Z],
-            "actuator_position_m": lambda: x[A.X_XL],
-            "actuator_velocity_m_s": lambda: x[A.X_VL],
-            "rudder_angle_rad": lambda: A.rudder_angle(x, p),
-            "drivetrain_force_N": lambda: A.backlash_force(x, p),
-            "torque_Nm": lambda: A.motor_torque(x, p),
-        }
+        self.outputs = np.zeros(A.N_OUTPUTS)
+        states, outputs = A.PLANT.states, A.PLANT.outputs
+        getters = {name: self._state_getter(states.index(name)) for name, _ in PLANT_STATE_OUTPUTS}
+        for name, _ in PLANT_ELEMENT_OUTPUTS:
+            getters[name] = self._output_getter(outputs.index(name))
         for name, text in PLANT_OUTPUTS:
             self.register_variable(
                 Real(name, causality=Fmi2Causality.output, description=text, getter=getters[name])
             )
+
+    def _state_getter(self, i: int):
+        return lambda: self.x[i]
+
+    def _output_getter(self, i: int):
+        def value() -> float:
+            A.plant_outputs(self.x, self.p, self.outputs)
+            return self.outputs[i]
+
+        return value
 
     def do_step(self, current_time, step_size):
         n = substeps_of(step_size, self.step_s)

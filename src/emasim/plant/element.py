@@ -1,0 +1,116 @@
+"""What a plant element declares, and the layouts assembled from those declarations.
+
+An element (the motor, the friction, the transmission, the backlash coupling, the rod and
+rudder stage, the linkage) declares, in its own module:
+
+* its **states**: name (the trace and FMU name, unit in the name), unit, description, the
+  absolute tolerance the reference solver uses for it, and its divergence bound, a function of
+  the validated :class:`~emasim.plant.parameters.PlantParams`;
+* its **parameters**: the names of the SI values it reads from the packed parameter vector;
+* its **outputs**: the trace columns its output function computes from the state.
+
+:func:`assemble` lays the elements of a plant end to end: the state vector, the parameter
+vector and the element outputs of the trace are the concatenations of the declarations, in
+the plant's element order. Index constants (``X_IQ``, ``P_KB``) are then looked up by name
+(:meth:`Layout.index`), so no layout is ever kept by hand; compiled code reads them as
+module-level constants.
+"""
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+RATED_RUNAWAY = 20.0  # a rated quantity (current, speed) this many times over is a runaway
+FAR_RUNAWAY = 1e3  # a position this many strokes (or a state this many natural scales) away
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A named value with its unit: a parameter or an output column."""
+
+    name: str
+    unit: str
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class State(Quantity):
+    """A state: ``atol`` is its absolute tolerance in the reference solver (its unit);
+    ``bound(plant)`` the magnitude beyond which it means a runaway simulation."""
+
+    atol: float = 1e-12
+    bound: Callable = field(default=lambda plant: FAR_RUNAWAY, compare=False)
+
+
+@dataclass(frozen=True)
+class Element:
+    """One physical element of the plant (module docstring)."""
+
+    name: str
+    description: str
+    states: tuple[State, ...] = ()
+    params: tuple[Quantity, ...] = ()
+    outputs: tuple[Quantity, ...] = ()
+
+
+class Layout:
+    """Quantities end to end in a flat vector, looked up by name."""
+
+    def __init__(self, quantities: Sequence[Quantity]):
+        self.quantities = tuple(quantities)
+        self.names = tuple(q.name for q in self.quantities)
+        self._index = {name: i for i, name in enumerate(self.names)}
+        if len(self._index) != len(self.names):
+            twice = sorted({n for n in self.names if self.names.count(n) > 1})
+            raise ValueError(f"names declared twice: {', '.join(twice)}")
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def index(self, name: str) -> int:
+        return self._index[name]
+
+    def units(self) -> dict[str, str]:
+        return {q.name: q.unit for q in self.quantities}
+
+
+@dataclass(frozen=True)
+class PlantLayout:
+    """The layouts of a plant: states, parameters, element outputs, and where each element
+    starts in each (``state_offset[element.name]``, ``param_offset[element.name]``)."""
+
+    elements: tuple[Element, ...]
+    states: Layout
+    params: Layout
+    outputs: Layout
+    state_offset: dict[str, int]
+    param_offset: dict[str, int]
+
+    def limits(self, plant) -> np.ndarray:
+        """Every state's divergence bound for a validated PlantParams."""
+        return np.array([s.bound(plant) for s in self.states.quantities], dtype=np.float64)
+
+    def atol(self) -> np.ndarray:
+        """Every state's absolute tolerance, for the reference solver."""
+        return np.array([s.atol for s in self.states.quantities], dtype=np.float64)
+
+
+def assemble(elements: Sequence[Element]) -> PlantLayout:
+    """Lay ``elements`` end to end (module docstring)."""
+    state_offset, param_offset = {}, {}
+    states, params, outputs = [], [], []
+    for element in elements:
+        state_offset[element.name] = len(states)
+        param_offset[element.name] = len(params)
+        states.extend(element.states)
+        params.extend(element.params)
+        outputs.extend(element.outputs)
+    return PlantLayout(
+        tuple(elements),
+        Layout(states),
+        Layout(params),
+        Layout(outputs),
+        state_offset,
+        param_offset,
+    )
