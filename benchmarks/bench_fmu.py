@@ -17,6 +17,7 @@ import numpy as np
 from emasim.plant import actuator as A
 from emasim.plant.presets import sea805_linkage
 from emasim.signals import ZERO
+from emasim.sim.core import SignalArrays
 from emasim.sim.fmi import FmuSlave, export_plant_fmu, plant_substeps
 
 TS, SUBSTEPS = 1e-4, 10
@@ -36,11 +37,11 @@ def per_tick_in_process(plant, ticks: int) -> float:
     p, x = plant.pack(), plant.initial_state()
     work = np.zeros((5, A.N_STATE))
     h = TS / SUBSTEPS
-    loads = (ZERO, ZERO, ZERO)  # motor torque, rod force, rudder torque
-    plant_substeps(0.0, x, 0.0, 20.0, p, *loads, h, SUBSTEPS, work)  # compiled, cached
+    signals = SignalArrays(ZERO, ZERO, ZERO, ZERO)  # no reference, no loads
+    plant_substeps(0.0, x, 0.0, 20.0, p, signals, h, SUBSTEPS, work)  # compiled, cached
     start = time.perf_counter()
     for k in range(ticks):
-        plant_substeps(k * TS, x, 0.0, 20.0, p, *loads, h, SUBSTEPS, work)
+        plant_substeps(k * TS, x, 0.0, 20.0, p, signals, h, SUBSTEPS, work)
     return (time.perf_counter() - start) / ticks
 
 

@@ -71,7 +71,6 @@ def speed_setup(
     ``current_facts`` (default ``facts``) is what the current loop is designed from, so a test
     can give the controller a different idea of the plant than the plant itself.
     """
-    cur_params, _ = CurrentPI().pack(current_facts or facts)
     return Setup(
         plant=p,
         sample_period_s=ts,
@@ -81,7 +80,7 @@ def speed_setup(
         motor_load=motor_load,
         rod_load=rod_load,
         speed=speed if speed is not None else SpeedPI().build(facts, ts),
-        current_params=cur_params,
+        current=CurrentPI().build(current_facts or facts, ts),
         record_every=record_every,
         x0=np.zeros(A.N_STATE) if x0 is None else x0,
     )

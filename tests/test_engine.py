@@ -11,7 +11,7 @@ import numba
 import numpy as np
 import pytest
 
-from emasim.control.slot import CONTROLLER_SIG
+from emasim.control.slot import CONTROLLER_SIG, Compiled
 from emasim.errors import SimulationDiverged
 from emasim.interface import O_RATE, O_VALUE
 from emasim.plant.actuator import STATE_NAMES, X_IQ, X_WM
@@ -96,6 +96,24 @@ def test_a_users_controller_plugs_in_without_recompiling_the_loop():
     result = simulate(setup.with_(speed=own))
     assert len(engine.run_ticks.overloads) == before == 1
     assert np.allclose(result["iq_ref_A"], 5.0)
+
+
+def test_the_drive_limits_hold_whatever_a_user_controller_commands():
+    """A user's speed law asking ten times the current limit gets the limit, exactly, and a
+    user's position law asking ten times the rated speed gets the rated speed."""
+    scenario = short("speed-step", 0.05, 0.02)
+    setup = scenario.setup()
+    i_max = scenario.plant.motor.max_current_A
+    greedy = Compiled(hold_current, np.array([10.0 * i_max]), np.zeros(1))
+    result = simulate(setup.with_(speed=greedy))
+    assert result["iq_ref_A"].max() == i_max
+    position = load_scenario(
+        "position-step", controllers=["position=pid"], settings=["duration_s=0.05"]
+    )
+    w_max = position.plant.motor.max_speed_rpm * 2.0 * np.pi / 60.0
+    racing = Compiled(hold_current, np.array([10.0 * w_max]), np.zeros(1), commands="speed")
+    result = simulate(position.setup().with_(position=racing))
+    assert np.nanmax(result["speed_ref_rad_s"]) == w_max
 
 
 def test_divergence_names_time_state_and_the_stiffness_the_step_is_too_large_for():

@@ -118,7 +118,7 @@ def speed_step_setup() -> Setup:
         motor_load=encode([Step(time_s=0.05, final=5.0)]),
         rod_load=ZERO,
         speed=SpeedPI().build(facts, TS),
-        current_params=CurrentPI().pack(facts)[0],
+        current=CurrentPI().build(facts, TS),
         record_every=1,
         x0=plant.initial_state(),
     )
@@ -147,7 +147,7 @@ def closed_loop_through_fmu(path, setup: Setup) -> dict[str, np.ndarray]:
             speed.function(speed_state, speed.params, meas, ref, TS, out)
             i_d, i_q, w = meas[M_ID], meas[M_IQ], meas[M_SPEED]
             u_d, u_q = current_control(
-                current_state, setup.current_params, i_d, i_q, w, 0.0, out[O_VALUE], TS
+                current_state, setup.current.params, i_d, i_q, w, 0.0, out[O_VALUE], TS
             )
             u_d, u_q = limit_voltage(u_d, u_q, u_max)
             load = signal_value(setup.motor_load, t + 0.5 * h)  # held: steps fall on ticks

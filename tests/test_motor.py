@@ -217,8 +217,9 @@ def test_mechanical_energy_balance(energy_run):
 def test_voltage_never_exceeds_the_inverter_limit(speed_rpm, controller_bus_factor):
     """A step far beyond the voltage-limited speed (~6500 rpm) saturates the inverter. With
     controller_bus_factor > 1 the current loop's own limit is inert and only the plant's
-    averaged inverter stands between the request and the motor."""
-    plant, p = frictionless_sea805()
+    averaged inverter stands between the request and the motor. The drive's own speed limit
+    is raised above the step, so that the engine's clamp of the command does not act first."""
+    plant, p = frictionless_sea805(WMAX=2.0 * abs(speed_rpm) * RPM)
     facts = facts_of(plant)
     current_facts = dataclasses.replace(facts, dc_bus_V=controller_bus_factor * facts.dc_bus_V)
     setup = speed_setup(

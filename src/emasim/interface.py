@@ -15,7 +15,9 @@ Reference vector ``ref`` given to a controller: R_VALUE, R_RATE (first derivativ
 R_ACCEL (second derivative) of its set-point, in the units of the loop.
 
 Output vector ``out`` written by a controller: O_VALUE, the command for the inner loop, and
-O_RATE, its time derivative as far as the controller knows it (used as feed-forward).
+O_RATE, its time derivative as far as the controller knows it (used as feed-forward). The
+current loop's slot gets the q-axis current command as its reference (R_VALUE; the d-axis
+command is 0) and writes the stator voltages it asks for, O_UD and O_UQ (V).
 """
 
 M_SPEED = 0
@@ -45,4 +47,6 @@ N_REF = 3
 
 O_VALUE = 0
 O_RATE = 1
+O_UD = 0  # the current loop's out: d-axis voltage
+O_UQ = 1  # ... and q-axis voltage
 N_OUT = 2

@@ -18,8 +18,9 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from ..config import STRICT
+from ..interface import M_ID, M_IQ, M_SPEED, O_UD, O_UQ, R_VALUE
 from ..numerics import limit_magnitude
-from .slot import PlantFacts
+from .slot import Compiled, PlantFacts, controller_law
 
 KP_D, KP_Q, KI_D, KI_Q, LD, LQ, PSI, NP, U_MAX = range(9)
 N_PARAMS = 9
@@ -41,6 +42,15 @@ def current_control(state, params, i_d, i_q, w_m, id_ref, iq_ref, ts):
     return u_d, u_q
 
 
+@controller_law
+def current_loop(state, params, meas, ref, ts, out):
+    """:func:`current_control` in the slot convention: iq* = ref[R_VALUE], id* = 0, the
+    measured currents and speed from ``meas``; writes (ud, uq) to out[O_UD], out[O_UQ]."""
+    out[O_UD], out[O_UQ] = current_control(
+        state, params, meas[M_ID], meas[M_IQ], meas[M_SPEED], 0.0, ref[R_VALUE], ts
+    )
+
+
 class CurrentPI(BaseModel):
     """Current-loop design by bandwidth (default 2 pi 500 rad/s)."""
 
@@ -58,3 +68,9 @@ class CurrentPI(BaseModel):
         params[PSI], params[NP] = plant.flux_linkage_Wb, plant.pole_pairs
         params[U_MAX] = plant.max_voltage_V
         return params, np.zeros(N_STATE)
+
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        """The current loop for its slot (:func:`current_loop`); ``ts`` is not needed: the PI
+        is designed in continuous time."""
+        params, state = self.pack(plant)
+        return Compiled(current_loop, params, state, commands="voltage")

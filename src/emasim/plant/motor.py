@@ -82,6 +82,8 @@ MOTOR = Element(
         Quantity("rotor_inertia_kgm2", "kg m^2", "J"),
         Quantity("motor_viscous_Nms_per_rad", "N m s/rad", "B"),
         Quantity("dc_bus_V", "V", "Udc"),
+        Quantity("max_current_A", "A", "the drive's current limit, held on every command"),
+        Quantity("max_speed_rad_s", "rad/s", "the drive's speed limit, held on every command"),
     ),
     outputs=(Quantity("torque_Nm", "N m", "electromagnetic torque Te"),),
 )

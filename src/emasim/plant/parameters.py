@@ -266,6 +266,8 @@ class PlantParams(Strict):
         p[A.P_CL] = ld.viscous_Ns_per_m
         p[A.P_ARM] = ld.rudder_arm_mm * MM
         p[A.P_UDC] = m.dc_bus_V
+        p[A.P_IMAX] = m.max_current_A
+        p[A.P_WMAX] = m.max_speed_rpm * RPM
         if self.linkage is not None:
             p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
             p[A.P_ML] = self.linkage.rod_mass_kg

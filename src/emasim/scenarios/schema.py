@@ -348,7 +348,7 @@ class Scenario(Strict):
             rudder_load=rudder_load,
             speed=c.speed.build(facts, ts),
             position=c.position.build(facts, ts) if c.position is not None else None,
-            current_params=c.current.pack(facts)[0],
+            current=c.current.build(facts, ts),
             sensors=self.sensors.pack(),
             record_every=self.solver.record_every,
             seed=self.seed,

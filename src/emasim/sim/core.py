@@ -5,9 +5,11 @@ One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
 * :class:`PlantArrays`: the packed SI parameters and every state's divergence bound;
 * :class:`SignalArrays`: the reference and the three loads, encoded (emasim.signals);
 * :class:`SensorArrays`: the sensor table and the play operators' states;
-* the **slots**: a tuple (position, speed, current), each slot a plain tuple
-  ``(function, params, state)`` of a controller law with the library's signature
-  (:data:`emasim.control.slot.CONTROLLER_SIG`), called through a function pointer;
+* the **slots** position, speed and current: each a controller law with the library's
+  signature (:data:`emasim.control.slot.CONTROLLER_SIG`), called through a function pointer,
+  and its ``(params, state)`` arrays. The three laws are arguments of their own (numba types
+  a law given inside a tuple through an experimental path, with a warning at every call);
+  their arrays travel as one tuple;
 * :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed and
   which loops close.
 
@@ -15,10 +17,18 @@ One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
 (:meth:`emasim.scenarios.schema.Scenario.setup`); the engine, the reference path, the
 co-simulation, the FMU slaves and the benchmarks all take them from there.
 
-Measured before adopting this (a prototype loop of 5e6 ticks calling a controller through a
-pointer, in one process, interleaved; numba 0.6x): the records cost nothing against flat
-arrays (0.175 s against 0.174 s), and numba's disk cache serves them in a fresh process,
-provided the record classes live in a module (here), not in ``__main__``.
+Measured before adopting this, on the 2-core development machine:
+
+* a prototype loop of 5e6 ticks calling a controller through a pointer, the arrays as records
+  or as flat arguments, interleaved in one process: 0.175 s against 0.174 s; numba's disk
+  cache serves records in a fresh process, provided their classes live in a module (here),
+  not in ``__main__``;
+* a record passed to a function called at every RK4 sub-step costs 15 % of the lumped loop
+  (0.87 against 0.75 us per sub-step), so ``plant_step`` takes its three loads as arrays;
+* each call of ``run_ticks`` from Python costs far more than a tick: 116 us with the old 26
+  arguments, 278 us with three laws handed over as dispatchers (numba looks up their machine
+  code at every call), 91 us as :class:`emasim.control.slot.LawAddress`. So a run is one call
+  (twenty with a progress bar), and laws travel as addresses.
 """
 
 from typing import NamedTuple
@@ -68,10 +78,24 @@ class Timing(NamedTuple):
     loop: int
 
 
+class Core(NamedTuple):
+    """Everything :func:`emasim.sim.engine.run_ticks` reads besides the state and the trace,
+    in its argument order: ``run_ticks(k0, k1, x, *core, trace, status)``."""
+
+    plant: PlantArrays
+    signals: SignalArrays
+    sensors: SensorArrays
+    position_law: object  # the slots' compiled laws
+    speed_law: object
+    current_law: object
+    slots: tuple  # ((params, state) of the position, the speed and the current slot)
+    timing: Timing
+
+
 PLANT_TYPE = types.NamedUniTuple(F8A, 2, PlantArrays)
 SIGNALS_TYPE = types.NamedUniTuple(F8A, 4, SignalArrays)
 SENSORS_TYPE = types.NamedTuple((F8A2, F8A), SensorArrays)
 TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8), Timing)
-SLOT_TYPE = types.Tuple((CONTROLLER_TYPE, F8A, F8A))  # (function, params, state)
-SLOTS_TYPE = types.UniTuple(SLOT_TYPE, 3)  # position, speed, current
+SLOTS_TYPE = types.UniTuple(types.UniTuple(F8A, 2), 3)  # (params, state) of each slot
+LAW_TYPE = CONTROLLER_TYPE
 POSITION_SLOT, SPEED_SLOT, CURRENT_SLOT = range(3)

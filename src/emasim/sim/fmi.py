@@ -117,8 +117,10 @@ CONSTANT_VALUE = 3  # index of the value in a one-term constant signal (emasim.s
 
 
 @nb.njit(cache=True, error_model="numpy")
-def plant_substeps(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, n, work):
-    """n sub-steps of :func:`emasim.sim.engine.plant_step` from t, as the engine runs a tick."""
+def plant_substeps(t, x, u_d, u_q, p, signals, h, n, work):
+    """n sub-steps of :func:`emasim.sim.engine.plant_step` from t, as the engine runs a tick;
+    ``signals`` (emasim.sim.core.SignalArrays) holds the loads."""
+    motor_load, rod_load, rudder_load = signals.motor_load, signals.rod_load, signals.rudder_load
     for j in range(n):
         plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work)
 

@@ -24,16 +24,25 @@ ATOL = A.PLANT.atol()  # absolute tolerance of every state, from the elements' d
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _rhs(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, t_end):
+def _rhs(t, x, u_d, u_q, p, signals, t_end):
     """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
     boundary belongs to the next tick, as it does in the engine."""
     t_in = min(t, t_end - 1e-9 * (abs(t_end) + 1e-3))
     dx = np.zeros(A.N_STATE)  # the linkage rows stay 0 with the lumped rudder
-    t_load = signal_value(motor_load, t_in)
-    f_load = signal_value(rod_load, t_in)
-    r_load = signal_value(rudder_load, t_in)
+    t_load = signal_value(signals.motor_load, t_in)
+    f_load = signal_value(signals.rod_load, t_in)
+    r_load = signal_value(signals.rudder_load, t_in)
     A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, dx)
     return dx
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _tick(
+    t, x, plant, signals, sensors, position_law, speed_law, current_law, slots, timing, scratch
+):
+    """The engine's control_tick, its three laws given one by one (as run_ticks takes them)."""
+    laws = (position_law, speed_law, current_law)
+    return control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch)
 
 
 def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Result:
@@ -41,47 +50,29 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
     ts = setup.sample_period_s
     run = setup.start()
     x = run.x
-    meas, ref, out = np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT)
+    plant, signals, sensors, *laws, slots, timing = run.core
+    scratch = (np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT))
     seed_noise(setup.seed)
     start = time.perf_counter()
     for k in range(setup.n_ticks):
         t = k * ts
-        u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
-            t,
-            x,
-            setup.plant,
-            setup.sensors,
-            run.gap,
-            run.loop,
-            setup.reference,
-            run.position.function,
-            run.position.params,
-            run.position_state,
-            setup.speed.function,
-            setup.speed.params,
-            run.speed_state,
-            setup.current_params,
-            run.current_state,
-            ts,
-            meas,
-            ref,
-            out,
+        u_d, u_q, speed_ref, iq_ref, position_ref = _tick(
+            t, x, plant, signals, sensors, *laws, slots, timing, scratch
         )
         if k % setup.record_every == 0:
+            row = run.trace[k // setup.record_every]
             record(
-                run.trace[k // setup.record_every],
+                row,
                 t,
                 x,
-                setup.plant,
-                setup.motor_load,
-                setup.rod_load,
-                setup.rudder_load,
+                plant.params,
+                signals,
                 u_d,
                 u_q,
                 speed_ref,
                 iq_ref,
                 position_ref,
-                meas,
+                scratch[0],
             )
         sol = solve_ivp(
             _rhs,
@@ -90,15 +81,7 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
             method=method,
             rtol=rtol,
             atol=ATOL,
-            args=(
-                u_d,
-                u_q,
-                setup.plant,
-                setup.motor_load,
-                setup.rod_load,
-                setup.rudder_load,
-                t + ts,
-            ),
+            args=(u_d, u_q, plant.params, signals, t + ts),
         )
         if not sol.success:
             raise RuntimeError(f"reference solver failed at t = {t:g} s: {sol.message}")

@@ -5,13 +5,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..control.current import N_STATE as N_CURRENT_STATE
 from ..control.slot import Compiled, PlantFacts
 from ..interface import N_MEAS
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
 from ..signals import ZERO
+from .core import Core, PlantArrays, SensorArrays, SignalArrays, Timing
 from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
 
 
@@ -32,7 +32,7 @@ class Setup:
     motor_load: np.ndarray
     rod_load: np.ndarray
     speed: Compiled
-    current_params: np.ndarray
+    current: Compiled
     position: Compiled | None = None
     rudder_load: np.ndarray = field(default_factory=lambda: ZERO.copy())
     sensors: np.ndarray = field(default_factory=lambda: np.zeros((N_MEAS, 4)))
@@ -72,18 +72,38 @@ class Setup:
         return replace(self, **changes)
 
     def start(self) -> "RunState":
-        """Fresh copies of everything a run changes, and an empty trace."""
+        """The compiled core's inputs (emasim.sim.core), with fresh copies of everything a run
+        changes (plant state, slot states, play operators), and an empty trace."""
         n = self.n_ticks
-        position = self.position if self.position is not None else self.speed
+        position = self.position if self.position is not None else self.speed  # never called
+        laws = (position.law, self.speed.law, self.current.law)
+        slots = tuple(
+            (_floats(c.params), _floats(c.state).copy())
+            for c in (position, self.speed, self.current)
+        )
+        core = Core(
+            PlantArrays(_floats(self.plant), _floats(self.limits)),
+            SignalArrays(
+                _floats(self.reference),
+                _floats(self.motor_load),
+                _floats(self.rod_load),
+                _floats(self.rudder_load),
+            ),
+            SensorArrays(np.ascontiguousarray(self.sensors, np.float64), self.initial_gap_state()),
+            *laws,
+            slots,
+            Timing(
+                self.sample_period_s,
+                self.substeps,
+                self.record_every,
+                self.seed,
+                self.loop_structure,
+            ),
+        )
         return RunState(
             trace=np.full(((n + self.record_every - 1) // self.record_every, N_COLUMNS), np.nan),
-            x=self.x0.astype(np.float64).copy(),
-            position=position,
-            position_state=position.state.copy(),
-            speed_state=self.speed.state.copy(),
-            current_state=np.zeros(N_CURRENT_STATE),
-            gap=self.initial_gap_state(),
-            loop=self.loop_structure,
+            x=_floats(self.x0).copy(),
+            core=core,
         )
 
     def initial_gap_state(self) -> np.ndarray:
@@ -95,20 +115,21 @@ class Setup:
 
 @dataclass
 class RunState:
-    """What one run of a Setup changes: plant state, controller states, trace.
+    """What one run of a Setup changes: the plant state, the trace, and the core's inputs
+    (whose slot states and play operators change too).
 
-    ``position`` is the position controller, or the speed controller standing in for it (the
-    compiled loop always takes one; it calls it only when a position loop is closed).
+    The position slot holds the speed controller when no position loop closes (the compiled
+    loop always takes three slots; it calls the position slot only in a position loop).
     """
 
     trace: np.ndarray
     x: np.ndarray
-    position: Compiled
-    position_state: np.ndarray
-    speed_state: np.ndarray
-    current_state: np.ndarray
-    gap: np.ndarray
-    loop: int
+    core: Core
+
+
+def _floats(array) -> np.ndarray:
+    """A C-contiguous float64 array (the compiled core's type), copied only if needed."""
+    return np.ascontiguousarray(array, dtype=np.float64)
 
 
 def plant_facts(plant) -> PlantFacts:

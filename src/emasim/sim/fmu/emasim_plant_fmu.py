@@ -13,6 +13,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 from emasim import __version__
 from emasim.plant import actuator as A
 from emasim.signals import Constant, encode
+from emasim.sim.core import SignalArrays
 from emasim.sim.fmi import (
     CONSTANT_VALUE,
     DEFAULT_STEP_S,
@@ -43,9 +44,7 @@ class EmasimPlant(Fmi2Slave):
         if self.p.size != A.N_PARAMS or self.x.size != A.N_STATE:
             raise ValueError(f"{PLANT_RESOURCE} does not fit this emasim ({__version__})")
         self.work = np.zeros((5, A.N_STATE))
-        self.motor_load = encode([Constant(value=0.0)])
-        self.rod_load = encode([Constant(value=0.0)])
-        self.rudder_load = encode([Constant(value=0.0)])
+        self.signals = SignalArrays(*(encode([Constant(value=0.0)]) for _ in range(4)))
         self.step_s = DEFAULT_STEP_S
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
         self.rudder_torque_Nm = 0.0
@@ -72,20 +71,11 @@ class EmasimPlant(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         n = substeps_of(step_size, self.step_s)
-        self.motor_load[CONSTANT_VALUE] = self.load_torque_Nm
-        self.rod_load[CONSTANT_VALUE] = self.rod_force_N
-        self.rudder_load[CONSTANT_VALUE] = self.rudder_torque_Nm
+        self.signals.motor_load[CONSTANT_VALUE] = self.load_torque_Nm
+        self.signals.rod_load[CONSTANT_VALUE] = self.rod_force_N
+        self.signals.rudder_load[CONSTANT_VALUE] = self.rudder_torque_Nm
+        u_d, u_q = self.ud_V, self.uq_V
         plant_substeps(
-            current_time,
-            self.x,
-            self.ud_V,
-            self.uq_V,
-            self.p,
-            self.motor_load,
-            self.rod_load,
-            self.rudder_load,
-            step_size / n,
-            n,
-            self.work,
+            current_time, self.x, u_d, u_q, self.p, self.signals, step_size / n, n, self.work
         )
         return bool(np.all(np.isfinite(self.x)))
