@@ -163,6 +163,12 @@ def backlash_force(x, p):
 
 
 @nb.njit(cache=True, error_model="numpy")
+def drivetrain_force(x, p):
+    """The force the drive train puts on the rod (N): what a load cell on the rod reads."""
+    return backlash_force(x, p)
+
+
+@nb.njit(cache=True, error_model="numpy")
 def motor_torque(x, p):
     """Electromagnetic torque Te (N*m) of the state x."""
     return electromagnetic_torque(x[X_ID], x[X_IQ], p[P_NP], p[P_LD], p[P_LQ], p[P_PSI])
@@ -251,6 +257,6 @@ def plant_outputs(x, p, out):
     """Write every element output of state x (layout PLANT.outputs) into ``out``."""
     out[O_TORQUE] = motor_torque(x, p)
     out[O_FRICTION] = friction(x[X_WM], x[X_Z], p)[0]
-    out[O_DRIVETRAIN] = backlash_force(x, p)
+    out[O_DRIVETRAIN] = drivetrain_force(x, p)
     out[O_RUDDER] = rudder_angle(x, p)
     linkage_outputs(x, p, out[O_LINKAGE : O_LINKAGE + N_LINKAGE_OUTPUTS])

@@ -7,7 +7,10 @@ rudder stage, the linkage) declares, in its own module:
   absolute tolerance the reference solver uses for it, and its divergence bound, a function of
   the validated :class:`~emasim.plant.parameters.PlantParams`;
 * its **parameters**: the names of the SI values it reads from the packed parameter vector;
-* its **outputs**: the trace columns its output function computes from the state.
+* its **outputs**: the trace columns its output function computes from the state;
+* optionally its **presence**: the name of one of its parameters that is 0 when the element
+  is absent from a plant. An absent element's states stay idle and its outputs are NaN; its
+  columns are left out of a run's trace (:meth:`PlantLayout.absent_columns`).
 
 :func:`assemble` lays the elements of a plant end to end: the state vector, the parameter
 vector and the element outputs of the trace are the concatenations of the declarations, in
@@ -52,6 +55,7 @@ class Element:
     states: tuple[State, ...] = ()
     params: tuple[Quantity, ...] = ()
     outputs: tuple[Quantity, ...] = ()
+    presence: str | None = None  # a parameter that is 0 when the element is absent
 
 
 class Layout:
@@ -90,6 +94,17 @@ class PlantLayout:
     def limits(self, plant) -> np.ndarray:
         """Every state's divergence bound for a validated PlantParams."""
         return np.array([s.bound(plant) for s in self.states.quantities], dtype=np.float64)
+
+    def absent_columns(self, params: np.ndarray, keep: Sequence[str] = ()) -> frozenset[str]:
+        """The state and output names of the elements absent from the plant of ``params``
+        (packed), but for the elements named in ``keep``."""
+        names = []
+        for element in self.elements:
+            if element.presence is None or element.name in keep:
+                continue
+            if params[self.params.index(element.presence)] == 0:
+                names.extend(q.name for q in (*element.states, *element.outputs))
+        return frozenset(names)
 
     def atol(self) -> np.ndarray:
         """Every state's absolute tolerance, for the reference solver."""

@@ -141,6 +141,7 @@ LINKAGE = Element(
     states=LINK_STATES,
     params=tuple(Quantity(f"linkage_{name}", unit) for name, unit in _PARAMS),
     outputs=LINKAGE_COLUMNS,
+    presence="load_model",  # LOAD_LUMPED (0) or LOAD_LINKAGE (1), a parameter of the rod
 )
 
 # bodies

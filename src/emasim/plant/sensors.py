@@ -43,7 +43,7 @@ def true_values(x, p, values):
     values[M_VELOCITY] = x[A.X_VL]
     values[M_ID] = x[A.X_ID]
     values[M_IQ] = x[A.X_IQ]
-    values[M_FORCE] = A.backlash_force(x, p)
+    values[M_FORCE] = A.drivetrain_force(x, p)
     values[M_RUDDER] = A.rudder_angle(x, p)
 
 

@@ -90,7 +90,7 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     finally:
         if fmu is not None:
             fmu.close()
-    result = drive.result(linkage_columns=True)  # filled from the mechanism below
+    result = drive.result(keep_elements=("linkage",))  # filled from the mechanism below
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
     rows = np.arange(result.data.shape[0]) * linked.record_every
     for i, name in enumerate(L.LINK_STATE_NAMES):

@@ -35,7 +35,6 @@ from ..interface import (
 )
 from ..numerics import clamp
 from ..plant import actuator as A
-from ..plant import linkage as L
 from ..plant.element import Layout, Quantity
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
@@ -102,7 +101,6 @@ C_ROD_LOAD = TRACE.index("rod_load_N")
 C_RUDDER_LOAD = TRACE.index("rudder_load_Nm")
 C_MEASURED_SPEED = TRACE.index("measured_speed_rad_s")
 C_MEASURED_POSITION = TRACE.index("measured_position_m")
-LINKAGE_TRACE_COLUMNS = frozenset((*L.LINK_STATE_NAMES, *(q.name for q in L.LINKAGE.outputs)))
 
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
 
@@ -327,16 +325,11 @@ class EngineRun:
             raise SimulationDiverged(_divergence_message(self.setup, self.status))
         self.tick = k_end
 
-    def result(self, linkage_columns: bool | None = None) -> Result:
-        """The traces so far. The linkage's columns are kept when the plant has a linkage
-        (or when ``linkage_columns`` says so); without one they are idle and left out."""
-        if linkage_columns is None:
-            linkage_columns = self.setup.plant[A.P_LOAD_MODEL] == A.LOAD_LINKAGE
-        keep = [
-            i
-            for i, name in enumerate(TRACE_COLUMNS)
-            if linkage_columns or name not in LINKAGE_TRACE_COLUMNS
-        ]
+    def result(self, keep_elements: tuple[str, ...] = ()) -> Result:
+        """The traces so far, without the columns of elements absent from this plant (their
+        states idle, their outputs NaN), but for the elements named in ``keep_elements``."""
+        absent = A.PLANT.absent_columns(self.setup.plant, keep=keep_elements)
+        keep = [i for i, name in enumerate(TRACE_COLUMNS) if name not in absent]
         return Result(
             tuple(TRACE_COLUMNS[i] for i in keep),
             np.ascontiguousarray(self.run.trace[:, keep]),
