@@ -30,6 +30,7 @@ from ..config import MM, RPM
 from . import friction as fr
 from . import linkage as L
 from .backlash import BACKLASH, dead_zone_force
+from .compliance import COMPLIANCE, spring_force
 from .drivetrain import TRANSMISSION, reflected_torque
 from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State, assemble
 from .friction import FRICTION
@@ -67,7 +68,7 @@ ROD = Element(
 )
 
 # the plant's elements, in the order of the state and parameter vectors
-ELEMENTS = (MOTOR, FRICTION, TRANSMISSION, BACKLASH, ROD, L.LINKAGE)
+ELEMENTS = (MOTOR, FRICTION, TRANSMISSION, BACKLASH, ROD, COMPLIANCE, L.LINKAGE)
 PLANT = assemble(ELEMENTS)
 STATE_NAMES = PLANT.states.names
 N_STATE = len(PLANT.states)
@@ -81,6 +82,8 @@ X_WM = PLANT.states.index("motor_speed_rad_s")
 X_Z = PLANT.states.index("bristle_state_rad")
 X_XL = PLANT.states.index("actuator_position_m")
 X_VL = PLANT.states.index("actuator_velocity_m_s")
+X_XN = PLANT.states.index("compliance_node_position_m")
+X_VN = PLANT.states.index("compliance_node_velocity_m_s")
 X_LINK = PLANT.state_offset["linkage"]  # the linkage's 16 states (idle with the lumped rudder)
 
 # --- parameter vector (SI), filled by PlantParams.pack ------------------------------------
@@ -111,6 +114,10 @@ P_ML = PLANT.params.index("load_mass_kg")
 P_CL = PLANT.params.index("load_viscous_Ns_per_m")
 P_ARM = PLANT.params.index("rudder_arm_m")
 P_LOAD_MODEL = PLANT.params.index("load_model")
+P_COMPLIANCE = PLANT.params.index("compliance_present")
+P_KS = PLANT.params.index("compliance_stiffness_N_per_m")
+P_CS = PLANT.params.index("compliance_damping_Ns_per_m")
+P_MN = PLANT.params.index("compliance_node_mass_kg")
 P_LINK = PLANT.param_offset["linkage"]  # the linkage's parameters (emasim.plant.linkage layout)
 
 LOAD_LUMPED = 0
@@ -155,16 +162,32 @@ def bristle_half_and_full_step(z0, w, h, p):
 
 @nb.njit(cache=True, error_model="numpy")
 def backlash_force(x, p):
-    """Drive-train contact force Fb (N), positive when the nut pushes the rod forward."""
+    """Contact force Fb across the backlash gap (N), positive when the screw pushes forward:
+    on the rod, or on the compliance's node when the plant has one."""
     k = p[P_K]
-    dx = k * x[X_THETA] - x[X_XL]
-    dv = k * x[X_WM] - x[X_VL]
-    return dead_zone_force(dx, dv, p[P_HALF_GAP], p[P_KB], p[P_CB])
+    if p[P_COMPLIANCE] != 0.0:
+        far_x, far_v = x[X_XN], x[X_VN]
+    else:
+        far_x, far_v = x[X_XL], x[X_VL]
+    return dead_zone_force(
+        k * x[X_THETA] - far_x, k * x[X_WM] - far_v, p[P_HALF_GAP], p[P_KB], p[P_CB]
+    )
+
+
+@nb.njit(cache=True, error_model="numpy")
+def compliance_force(x, p):
+    """The series spring-damper's force on the rod (N); NaN without the element."""
+    if p[P_COMPLIANCE] == 0.0:
+        return np.nan
+    return spring_force(x[X_XN], x[X_VN], x[X_XL], x[X_VL], p[P_KS], p[P_CS])
 
 
 @nb.njit(cache=True, error_model="numpy")
 def drivetrain_force(x, p):
-    """The force the drive train puts on the rod (N): what a load cell on the rod reads."""
+    """The force the drive train puts on the rod (N): what a load cell on the rod reads (the
+    spring's with the compliance, the gap's without)."""
+    if p[P_COMPLIANCE] != 0.0:
+        return compliance_force(x, p)
     return backlash_force(x, p)
 
 
@@ -200,6 +223,13 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
     dx[X_THETA] = w
     dx[X_WM] = t_net / p[P_J]
     dx[X_Z] = z_rate
+    f_rod = f_b
+    if p[P_COMPLIANCE] != 0.0:
+        f_rod = compliance_force(x, p)
+        dx[X_XN] = x[X_VN]
+        dx[X_VN] = (f_b - f_rod) / p[P_MN]
+    else:
+        dx[X_XN] = dx[X_VN] = 0.0
     dx[X_XL] = x[X_VL]
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
         q = p[P_LINK:]
@@ -207,9 +237,9 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
         f_axial = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], -t_rudder, q, dx[X_LINK:], hinges)
         swing = x[X_LINK + L.N_POS + L.PHI]
         centripetal = (q[L.L0] + x[X_XL]) * swing * swing
-        dx[X_VL] = (f_b + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
+        dx[X_VL] = (f_rod + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
     else:
-        dx[X_VL] = (f_b - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
+        dx[X_VL] = (f_rod - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
 
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
@@ -232,6 +262,7 @@ O_TORQUE = PLANT.outputs.index("torque_Nm")
 O_FRICTION = PLANT.outputs.index("friction_torque_Nm")
 O_DRIVETRAIN = PLANT.outputs.index("drivetrain_force_N")
 O_RUDDER = PLANT.outputs.index("rudder_angle_rad")
+O_COMPLIANCE = PLANT.outputs.index("compliance_force_N")
 O_LINKAGE = PLANT.outputs.index(L.LINKAGE.outputs[0].name)
 N_OUTPUTS = len(PLANT.outputs)
 N_LINKAGE_OUTPUTS = len(L.LINKAGE.outputs)
@@ -259,4 +290,5 @@ def plant_outputs(x, p, out):
     out[O_FRICTION] = friction(x[X_WM], x[X_Z], p)[0]
     out[O_DRIVETRAIN] = drivetrain_force(x, p)
     out[O_RUDDER] = rudder_angle(x, p)
+    out[O_COMPLIANCE] = compliance_force(x, p)
     linkage_outputs(x, p, out[O_LINKAGE : O_LINKAGE + N_LINKAGE_OUTPUTS])

@@ -17,6 +17,7 @@ from ..config import MM, RPM, Strict  # noqa: F401 - RPM and Strict are part of 
 from ..interface import MEASUREMENT_NAMES
 from . import actuator as A
 from . import linkage as L
+from .compliance import ComplianceParams
 from .drivetrain import transmission_ratio
 from .friction import bristle_damping_for_ratio
 from .linkage import LinkageParams
@@ -168,6 +169,7 @@ class PlantParams(Strict):
     backlash: BacklashParams
     load: LoadParams
     linkage: LinkageParams | None = None
+    compliance: ComplianceParams | None = None
 
     @model_validator(mode="after")
     def _physically_consistent(self):
@@ -218,8 +220,10 @@ class PlantParams(Strict):
 
     @property
     def total_inertia_kgm2(self) -> float:
-        """Motor inertia plus load mass reflected to the motor shaft, J + M K^2 (kg*m^2)."""
-        return self.motor.inertia_kgm2 + self.load_mass_kg * self.ratio_m_per_rad**2
+        """Motor inertia plus load mass (and the compliance's node) reflected to the motor
+        shaft, J + (M + m_n) K^2 (kg*m^2)."""
+        node = self.compliance.node_mass_kg if self.compliance is not None else 0.0
+        return self.motor.inertia_kgm2 + (self.load_mass_kg + node) * self.ratio_m_per_rad**2
 
     @property
     def torque_constant_Nm_per_A(self) -> float:
@@ -231,7 +235,8 @@ class PlantParams(Strict):
         m, d, f, b, ld = self.motor, self.drivetrain, self.friction, self.backlash, self.load
         k = self.ratio_m_per_rad
         motor_mass = m.inertia_kgm2 / k**2  # motor inertia seen at the nut, kg
-        reduced = motor_mass * self.load_mass_kg / (motor_mass + self.load_mass_kg)
+        beyond_gap = self.load_mass_kg if self.compliance is None else self.compliance.node_mass_kg
+        reduced = motor_mass * beyond_gap / (motor_mass + beyond_gap)
         p = np.zeros(A.N_PARAMS)
         p[A.P_RS] = m.resistance_ohm
         p[A.P_LD] = m.inductance_d_H
@@ -268,6 +273,11 @@ class PlantParams(Strict):
         p[A.P_UDC] = m.dc_bus_V
         p[A.P_IMAX] = m.max_current_A
         p[A.P_WMAX] = m.max_speed_rpm * RPM
+        if self.compliance is not None:
+            p[A.P_COMPLIANCE] = 1.0
+            p[A.P_KS] = self.compliance.stiffness_N_per_m
+            p[A.P_CS] = self.compliance.damping_Ns_per_m
+            p[A.P_MN] = self.compliance.node_mass_kg
         if self.linkage is not None:
             p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
             p[A.P_ML] = self.linkage.rod_mass_kg
