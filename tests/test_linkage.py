@@ -264,10 +264,10 @@ def kinetic_energy(y, s, s_dot, q):
     r = q[L.L0] + s
     return 0.5 * (
         q[L.I_E] * v[L.PHI] ** 2
-        + q[L.M_ROD] * (s_dot**2 + (r * v[L.PHI]) ** 2)
-        + q[L.M_B] * (v[L.XB] ** 2 + v[L.YB] ** 2)
+        + q[L.MASS_ROD] * (s_dot**2 + (r * v[L.PHI]) ** 2)
+        + q[L.MASS_B] * (v[L.XB] ** 2 + v[L.YB] ** 2)
         + q[L.I_B] * v[L.TB] ** 2
-        + q[L.M_C] * (v[L.XC] ** 2 + v[L.YC] ** 2)
+        + q[L.MASS_C] * (v[L.XC] ** 2 + v[L.YC] ** 2)
         + q[L.I_C] * v[L.TC] ** 2
         + q[L.J_D] * v[L.TD] ** 2
     )
@@ -508,7 +508,7 @@ def mech():
 
 
 PARAM_NAMES = ("A0x", "A0y", "Ox", "Oy", "L0", "IE", "m", "mB", "IB", "mC", "IC", "JD", "cD")
-PARAM_INDEX = (L.A0X, L.A0Y, L.OX, L.OY, L.L0, L.I_E, L.M_ROD, L.M_B, L.I_B, L.M_C, L.I_C)
+PARAM_INDEX = (L.A0X, L.A0Y, L.OX, L.OY, L.L0, L.I_E, L.MASS_ROD, L.MASS_B, L.I_B, L.MASS_C, L.I_C)
 PARAM_INDEX += (L.J_D, L.C_D)
 
 
@@ -565,11 +565,11 @@ def test_actuator_swing_lagrange(mech):
         rod_end = world_point(L.ROD, (0.0, 0.0), y, ext, q)
         local = rotate((px - rod_end[0], py - rod_end[1]), -y[L.PHI])
         drive = rng.normal(0.0, 1e3)
-        values = [y[L.PHI], ext, y[L.N_POS + L.PHI], s_dot, q[L.I_E], q[L.M_ROD], q[L.L0]]
+        values = [y[L.PHI], ext, y[L.N_POS + L.PHI], s_dot, q[L.I_E], q[L.MASS_ROD], q[L.L0]]
         values += [drive, fx_, fy_, *local]
         assert dy[L.N_POS + L.PHI] == pytest.approx(phi_acc(*values), rel=1e-12, abs=1e-12)
         r_ = q[L.L0] + ext
-        f_sympy = q[L.M_ROD] * (s_acc(*values) - r_ * y[L.N_POS + L.PHI] ** 2) - drive
+        f_sympy = q[L.MASS_ROD] * (s_acc(*values) - r_ * y[L.N_POS + L.PHI] ** 2) - drive
         assert f_axial == pytest.approx(f_sympy, rel=1e-10, abs=1e-9)
         loaded += hinges[0, 1] > 0.0
     assert loaded >= 5  # most states load hinge 1 (fast separation clips the others to 0)
@@ -733,7 +733,7 @@ def test_chain_equations_match_kane(kane_chain):
         scale = np.abs(acc[: L.N_POS]) + 1e-3 * np.abs(acc[: L.N_POS]).max()
         assert np.all(np.abs(dy[L.N_POS :] - acc[: L.N_POS]) <= 1e-12 * scale)
         r = q[L.L0] + s
-        kane_axial = q[L.M_ROD] * (acc[8] - r * y[L.N_POS + L.PHI] ** 2) - drive
+        kane_axial = q[L.MASS_ROD] * (acc[8] - r * y[L.N_POS + L.PHI] ** 2) - drive
         assert f_axial == pytest.approx(kane_axial, rel=1e-12, abs=1e-9)
     assert np.all(touching >= 5)  # every hinge exercised in contact
 
@@ -791,7 +791,7 @@ def test_contacts_never_pull_and_act_equally_on_pin_and_hole():
         force = np.array([c[:2] for c in contacts])
         point = np.array([c[2:4] for c in contacts])
         acc = dy[L.N_POS :]
-        masses = (q[L.M_B], q[L.M_C])
+        masses = (q[L.MASS_B], q[L.MASS_C])
         lin = masses[0] * acc[[L.XB, L.YB]] + masses[1] * acc[[L.XC, L.YC]]
         external = -force[L.H1] - force[L.H3] + force[L.H4]
         np.testing.assert_allclose(lin, external, rtol=0.0, atol=1e-9 * (1.0 + np.abs(force).max()))

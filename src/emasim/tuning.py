@@ -45,7 +45,7 @@ TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasi
 def tuning_cost(result, max_current_A: float) -> float:
     """J of the module docstring for a simulated run."""
     t = result.t
-    if np.isfinite(result["position_ref_m"]).any():
+    if result.outer_loop == "position":
         reference, output = result["position_ref_m"], result["actuator_position_m"]
     else:
         reference, output = result["speed_ref_rad_s"], result["motor_speed_rad_s"]

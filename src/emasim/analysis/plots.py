@@ -34,7 +34,7 @@ def plot_result(result, title: str | None = None):
     run the motor speed and its command, in a speed run the torques on the shaft; the q-axis
     current and its command."""
     t = result.t
-    position_run = bool(np.isfinite(result["position_ref_m"]).any())
+    position_run = result.outer_loop == "position"
     fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
     if position_run:
         _line(axes[0], t, 1e3 * result["position_ref_m"], "k--", lw=1, label="reference")
@@ -75,7 +75,7 @@ def plot_result(result, title: str | None = None):
 
 def _output(result):
     """(label, unit scale, column, reference column) of the loop a run closes."""
-    if bool(np.isfinite(result["position_ref_m"]).any()):
+    if result.outer_loop == "position":
         if "rudder_deg" in result.scenario.get("reference", {}):
             return "rudder angle (deg)", 180.0 / np.pi, "rudder_angle_rad", None
         return "position (mm)", 1e3, "actuator_position_m", "position_ref_m"

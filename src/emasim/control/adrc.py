@@ -55,6 +55,7 @@ class SpeedADRC(ControllerConfig):
 
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
         b = plant.torque_constant_Nm_per_A / plant.inertia_kgm2
-        head = np.array([2.0 * math.pi * self.bandwidth_Hz, b, plant.max_current_A])
+        head = np.zeros(OBS)
+        head[WC], head[B], head[LIMIT] = 2.0 * math.pi * self.bandwidth_Hz, b, plant.max_current_A
         observer = discrete_observer(ESO_ORDER, 2.0 * math.pi * self.observer_bandwidth_Hz, b, ts)
         return Compiled(adrc, np.concatenate([head, observer]), np.zeros(Z + ESO_ORDER))

@@ -20,6 +20,7 @@ from ..numerics import boundary_layer, clamp
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 EPS, Q, PHI, B, LIMIT = range(5)
+N_PARAMS = 5
 
 
 @controller_law
@@ -43,15 +44,12 @@ class SpeedSMC(ControllerConfig):
     boundary_layer_rad_s: float = Field(default=1.0, ge=0, le=1e4, description="phi; 0 = pure sign")
 
     def build(self, plant: PlantFacts, ts: float) -> Compiled:
-        params = np.array(
-            [
-                self.switching_gain_rad_s2,
-                self.reaching_rate_per_s,
-                self.boundary_layer_rad_s,
-                plant.torque_constant_Nm_per_A / plant.inertia_kgm2,
-                plant.max_current_A,
-            ]
-        )
+        params = np.zeros(N_PARAMS)
+        params[EPS] = self.switching_gain_rad_s2
+        params[Q] = self.reaching_rate_per_s
+        params[PHI] = self.boundary_layer_rad_s
+        params[B] = plant.torque_constant_Nm_per_A / plant.inertia_kgm2
+        params[LIMIT] = plant.max_current_A
         return Compiled(sliding_mode_speed, params, np.zeros(1))
 
     def tunable_ranges(self):

@@ -106,6 +106,16 @@ class PlantLayout:
                 names.extend(q.name for q in (*element.states, *element.outputs))
         return frozenset(names)
 
+    def present_elements(self, params: np.ndarray, keep: Sequence[str] = ()) -> tuple[str, ...]:
+        """The names of the elements present in the plant of ``params`` (and those in keep)."""
+        return tuple(
+            element.name
+            for element in self.elements
+            if element.presence is None
+            or element.name in keep
+            or params[self.params.index(element.presence)] != 0
+        )
+
     def atol(self) -> np.ndarray:
         """Every state's absolute tolerance, for the reference solver."""
         return np.array([s.atol for s in self.states.quantities], dtype=np.float64)

@@ -82,12 +82,12 @@ LINK_STATE_NAMES = tuple(state.name for state in LINK_STATES)
     OY,
     L0,
     I_E,
-    M_ROD,
-    M_B,
+    MASS_ROD,
+    MASS_B,
     I_B,
     R1,
     R2,
-    M_C,
+    MASS_C,
     I_C,
     LC,
     J_D,
@@ -143,6 +143,20 @@ LINKAGE = Element(
     outputs=LINKAGE_COLUMNS,
     presence="load_model",  # LOAD_LUMPED (0) or LOAD_LINKAGE (1), a parameter of the rod
 )
+
+# generalised forces gathered over the hinges (the layout of ``gen`` in linkage_rhs)
+(
+    G_TAU_A0,  # torque about the actuator pivot A0, N m
+    G_FX_B,  # force on the rocker B, N
+    G_FY_B,
+    G_M_B,  # moment on B about its origin, N m
+    G_FX_C,  # force on the link C, N
+    G_FY_C,
+    G_M_C,  # moment on C about its centre, N m
+    G_M_D,  # moment on the rocker arm D about O, N m
+    G_AXIAL,  # axial force of the linkage on the rod, N
+) = range(9)
+N_GENERALISED = 9
 
 # bodies
 GROUND, ROD, BODY_B, BODY_C, BODY_D = range(5)
@@ -256,24 +270,25 @@ def hinge_contact(hinge, y, s, s_dot, q):
 def _apply(body, fx, fy, px, py, f, q, gen):
     """Add a force at a point to the generalised forces of a body.
 
-    gen layout: [tau about A0, Fx_B, Fy_B, M_B, Fx_C, Fy_C, M_C, M_D, F_axial_rod]."""
+    gen layout: the G_* constants (torque about A0, forces and moments on B and C, moment on
+    D, the axial force on the rod)."""
     if body == GROUND:
         return
     if body == ROD:
-        gen[0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
-        gen[8] += f[ROD, F_COS] * fx + f[ROD, F_SIN] * fy
+        gen[G_TAU_A0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
+        gen[G_AXIAL] += f[ROD, F_COS] * fx + f[ROD, F_SIN] * fy
         return
     moment = (px - f[body, F_RX]) * fy - (py - f[body, F_RY]) * fx
     if body == BODY_B:
-        gen[1] += fx
-        gen[2] += fy
-        gen[3] += moment
+        gen[G_FX_B] += fx
+        gen[G_FY_B] += fy
+        gen[G_M_B] += moment
     elif body == BODY_C:
-        gen[4] += fx
-        gen[5] += fy
-        gen[6] += moment
+        gen[G_FX_C] += fx
+        gen[G_FY_C] += fy
+        gen[G_M_C] += moment
     else:
-        gen[7] += moment
+        gen[G_M_D] += moment
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -285,7 +300,7 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     hinge's penetration (m) and normal force (N).
     """
     f = _frames(y, s, s_dot, q)
-    gen = np.zeros(9)
+    gen = np.zeros(N_GENERALISED)
     for h in range(N_HINGES):
         fx, fy, px, py, delta, fn = _contact(h, f, q)
         hinges[h, 0] = delta
@@ -299,15 +314,17 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     r = q[L0] + s
     for i in range(N_POS):
         dy[i] = v[i]
-    dy[N_POS + PHI] = (gen[0] - 2.0 * q[M_ROD] * r * s_dot * v[PHI]) / (q[I_E] + q[M_ROD] * r * r)
-    dy[N_POS + XB] = gen[1] / q[M_B]
-    dy[N_POS + YB] = gen[2] / q[M_B]
-    dy[N_POS + TB] = gen[3] / q[I_B]
-    dy[N_POS + XC] = gen[4] / q[M_C]
-    dy[N_POS + YC] = gen[5] / q[M_C]
-    dy[N_POS + TC] = gen[6] / q[I_C]
-    dy[N_POS + TD] = (gen[7] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
-    return gen[8]
+    dy[N_POS + PHI] = (gen[G_TAU_A0] - 2.0 * q[MASS_ROD] * r * s_dot * v[PHI]) / (
+        q[I_E] + q[MASS_ROD] * r * r
+    )
+    dy[N_POS + XB] = gen[G_FX_B] / q[MASS_B]
+    dy[N_POS + YB] = gen[G_FY_B] / q[MASS_B]
+    dy[N_POS + TB] = gen[G_M_B] / q[I_B]
+    dy[N_POS + XC] = gen[G_FX_C] / q[MASS_C]
+    dy[N_POS + YC] = gen[G_FY_C] / q[MASS_C]
+    dy[N_POS + TC] = gen[G_M_C] / q[I_C]
+    dy[N_POS + TD] = (gen[G_M_D] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
+    return gen[G_AXIAL]
 
 
 def _circle_intersection(c1, r1, c2, r2, near):
@@ -384,10 +401,10 @@ class LinkageParams(Strict):
         q[[H3X, H3Y]] = np.array(self.rocker_pivot_mm) * MM
         q[[OX, OY]] = np.array(self.rudder_shaft_mm) * MM
         q[L0] = self.rod_length_mm * MM
-        q[I_E], q[M_ROD] = self.actuator_inertia_kgm2, self.rod_mass_kg
-        q[M_B], q[I_B] = self.rocker_mass_kg, self.rocker_inertia_kgm2
+        q[I_E], q[MASS_ROD] = self.actuator_inertia_kgm2, self.rod_mass_kg
+        q[MASS_B], q[I_B] = self.rocker_mass_kg, self.rocker_inertia_kgm2
         q[R1], q[R2] = self.rocker_arm_1_mm * MM, self.rocker_arm_2_mm * MM
-        q[M_C], q[I_C] = self.link_mass_kg, self.link_inertia_kgm2
+        q[MASS_C], q[I_C] = self.link_mass_kg, self.link_inertia_kgm2
         q[LC] = self.link_length_mm * MM
         q[J_D], q[R4] = self.rudder_inertia_kgm2, self.rudder_arm_mm * MM
         q[C_D] = self.rudder_damping_Nms_per_rad

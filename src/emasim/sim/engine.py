@@ -53,7 +53,7 @@ from .core import (
     TIMING_TYPE,
 )
 from .diagnosis import likely_cause
-from .result import Result
+from .result import Result, RunDescription
 
 LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
 LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
@@ -328,12 +328,22 @@ class EngineRun:
     def result(self, keep_elements: tuple[str, ...] = ()) -> Result:
         """The traces so far, without the columns of elements absent from this plant (their
         states idle, their outputs NaN), but for the elements named in ``keep_elements``."""
-        absent = A.PLANT.absent_columns(self.setup.plant, keep=keep_elements)
+        setup = self.setup
+        absent = A.PLANT.absent_columns(setup.plant, keep=keep_elements)
         keep = [i for i, name in enumerate(TRACE_COLUMNS) if name not in absent]
+        columns = tuple(TRACE_COLUMNS[i] for i in keep)
+        units = TRACE.units()
         return Result(
-            tuple(TRACE_COLUMNS[i] for i in keep),
+            columns,
             np.ascontiguousarray(self.run.trace[:, keep]),
             meta={"simulation_wall_s": self.wall_s},
+            description=RunDescription(
+                elements=A.PLANT.present_elements(setup.plant, keep=keep_elements),
+                loops=setup.loop_laws(),
+                outer_loop="speed" if setup.position is None else "position",
+                sensors=setup.sensor_description(),
+                units={name: units[name] for name in columns},
+            ),
         )
 
 

@@ -25,21 +25,68 @@ from ..output import RUNS_ROOT, fresh_folder, json_text, slug, write_folder
 RPM_PER_RAD_S = 30.0 / np.pi
 
 
+@dataclass(frozen=True)
+class RunDescription:
+    """What a run was, typed: analysis and reports read this, never NaN columns or the TOML.
+
+    ``elements``: the plant elements present (emasim.plant.actuator.ELEMENTS names);
+    ``loops``: slot -> controller name of every closed loop, outermost first (a controller
+    built by hand is named by its function); ``outer_loop``: 'position' or 'speed', the loop
+    the reference drives; ``sensors``: channel -> (resolution, noise_std, offset, gap_width)
+    of every non-ideal channel (SI); ``units``: column -> unit of every trace column.
+    """
+
+    elements: tuple[str, ...]
+    loops: dict[str, str]
+    outer_loop: str
+    sensors: dict[str, tuple[float, float, float, float]]
+    units: dict[str, str]
+
+    def to_json(self) -> dict:
+        return {
+            "elements": list(self.elements),
+            "loops": dict(self.loops),
+            "outer_loop": self.outer_loop,
+            "sensors": {name: list(v) for name, v in self.sensors.items()},
+            "units": dict(self.units),
+        }
+
+    @classmethod
+    def from_json(cls, data: dict) -> "RunDescription":
+        return cls(
+            elements=tuple(data["elements"]),
+            loops=dict(data["loops"]),
+            outer_loop=data["outer_loop"],
+            sensors={name: tuple(v) for name, v in data["sensors"].items()},
+            units=dict(data["units"]),
+        )
+
+
 @dataclass
 class Result:
-    """Traces of one run. ``result["motor_speed_rad_s"]`` returns a column as an array."""
+    """Traces of one run. ``result["motor_speed_rad_s"]`` returns a column as an array;
+    ``description`` says what the run was (saved in meta.json as ``run``)."""
 
     columns: tuple[str, ...]
     data: np.ndarray
     scenario: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
+    description: RunDescription | None = None
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
             return self.data[:, self.columns.index(name)]
         except ValueError:
             raise KeyError(f"no column '{name}'; columns: {', '.join(self.columns)}") from None
+
+    @property
+    def outer_loop(self) -> str:
+        """'position' or 'speed': the loop the reference drives (from the description, or for a
+        folder saved without one, from the resolved scenario's reference)."""
+        if self.description is not None:
+            return self.description.outer_loop
+        return "speed" if self.scenario.get("reference", {}).get("speed_rpm") else "position"
 
     @property
     def t(self) -> np.ndarray:
@@ -58,7 +105,10 @@ class Result:
     def write_files(self, folder: Path, plot: bool = True) -> None:
         """Write the run's files into an existing folder (see :meth:`save`)."""
         pq.write_table(self._to_arrow(), folder / "result.parquet")
-        _write_records(folder, self.metrics, self.meta, self.scenario)
+        meta = self.meta
+        if self.description is not None:
+            meta = {**meta, "run": self.description.to_json()}
+        _write_records(folder, self.metrics, meta, self.scenario)
         if plot:
             from ..analysis.plots import plot_result, save_figure
 
@@ -76,12 +126,15 @@ class Result:
         """Read a run folder written by :meth:`save`."""
         folder = Path(folder)
         table = pq.read_table(folder / "result.parquet")
+        meta = json.loads((folder / "meta.json").read_text())
+        run = meta.pop("run", None)
         return cls(
             columns=tuple(table.column_names),
             data=np.column_stack([c.to_numpy() for c in table.columns]).astype(np.float64),
             scenario=tomllib.loads((folder / "scenario.toml").read_text()),
-            meta=json.loads((folder / "meta.json").read_text()),
+            meta=meta,
             metrics=json.loads((folder / "metrics.json").read_text()),
+            description=RunDescription.from_json(run) if run is not None else None,
         )
 
 

@@ -1,5 +1,6 @@
 """Run a scenario end to end: compile, simulate, attach scenario, metadata and metrics."""
 
+import dataclasses
 import datetime
 import platform
 
@@ -42,6 +43,10 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
     result.meta = _meta(scenario, result.meta["simulation_wall_s"])
     result.meta["label"] = label or scenario.controllers_label()
+    c = scenario.controllers
+    names = {"position": c.position.name if c.position is not None else None, "speed": c.speed.name}
+    loops = {slot: names.get(slot, "pi") for slot in result.description.loops}
+    result.description = dataclasses.replace(result.description, loops=loops)
     result.metrics = run_metrics(result)
     undefined = undefined_metrics(result.metrics)
     if undefined:

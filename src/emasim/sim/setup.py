@@ -6,7 +6,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..control.slot import Compiled, PlantFacts
-from ..interface import N_MEAS
+from ..interface import MEASUREMENT_NAMES, N_MEAS
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
@@ -66,6 +66,25 @@ class Setup:
     def step_s(self) -> float:
         """Integration sub-step h = Ts / substeps."""
         return self.sample_period_s / self.substeps
+
+    def loop_laws(self) -> dict[str, str]:
+        """Slot -> the name of its law, for every closed loop, outermost first."""
+        slots = {"position": self.position, "speed": self.speed, "current": self.current}
+        if self.position is not None and self.position.commands == "current":
+            del slots["speed"]
+        return {
+            slot: getattr(c.function, "__name__", type(c.function).__name__)
+            for slot, c in slots.items()
+            if c is not None
+        }
+
+    def sensor_description(self) -> dict[str, tuple[float, float, float, float]]:
+        """Channel -> (resolution, noise_std, offset, gap_width) of every non-ideal channel."""
+        return {
+            name: (float(row[0]), float(row[1]), float(row[2]), 2.0 * float(row[3]))
+            for name, row in zip(MEASUREMENT_NAMES, self.sensors, strict=True)
+            if np.any(row != 0.0)
+        }
 
     def with_(self, **changes) -> "Setup":
         """A copy with some fields replaced."""

@@ -1,0 +1,34 @@
+"""A Result says what its run was (RunDescription): elements, loops, sensors, column units.
+
+Analysis reads this, never NaN columns; it survives a save and a load.
+"""
+
+from emasim.scenarios.loader import load_scenario
+from emasim.sim.result import Result
+from emasim.sim.runner import run_scenario
+
+
+def test_a_position_run_describes_its_cascade_elements_sensors_and_units(tmp_path):
+    scenario = load_scenario(
+        "bench-step", controllers=["hybrid"], settings=["duration_s=0.02", 'sensors="bench"']
+    )
+    result = run_scenario(scenario)
+    run = result.description
+    assert run.outer_loop == "position" and result.outer_loop == "position"
+    assert run.loops == {"position": "rbf-smc", "speed": "st-gpio", "current": "pi"}
+    assert "linkage" in run.elements and "compliance" not in run.elements
+    assert run.sensors and all(len(v) == 4 for v in run.sensors.values())
+    assert set(run.units) == set(result.columns)
+    assert run.units["iq_A"] == "A" and run.units["hinge1_force_N"] == "N"
+    again = Result.load(result.save(tmp_path / "run", plot=False))
+    assert again.description == run
+
+
+def test_a_speed_run_closes_two_loops_on_the_lumped_plant():
+    result = run_scenario(
+        load_scenario("speed-step", controllers=["speed=smc"], settings=["duration_s=0.01"])
+    )
+    run = result.description
+    assert run.outer_loop == "speed" and run.loops == {"speed": "smc", "current": "pi"}
+    assert "linkage" not in run.elements and run.sensors == {}
+    assert "linkage_rod_force_N" not in run.units
