@@ -1,10 +1,10 @@
-"""Runs in parallel (emasim.sim.batch) give exactly what they give one by one."""
+"""Runs in parallel (emasim.experiments.batch) give exactly what they give one by one."""
 
 import numpy as np
 
+from emasim.experiments.batch import run_all
+from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import load_scenario
-from emasim.sim.batch import run_all
-from emasim.sim.runner import run_scenario
 
 
 def test_parallel_runs_match_sequential_runs_with_noise():

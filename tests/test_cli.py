@@ -9,9 +9,9 @@ import pytest
 from typer.testing import CliRunner
 
 from emasim.cli import app
+from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import validate_scenario
 from emasim.sim.result import Comparison, Result
-from emasim.sim.runner import run_scenario
 
 runner = CliRunner()
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from emasim.errors import InputError
+from emasim.experiments.runs import run_scenario
 from emasim.plant.linkage import rudder_angle_of_extension
 from emasim.scenarios.loader import load_scenario
-from emasim.sim.runner import run_scenario
 
 SHORT = ["duration_s=0.5"]
 

@@ -19,6 +19,8 @@ from emasim.cli import app
 from emasim.control.current import CurrentPI, current_control
 from emasim.control.pid import SpeedPI
 from emasim.errors import InputError
+from emasim.experiments.batch import run_comparison
+from emasim.experiments.runs import run_scenario
 from emasim.interface import M_ID, M_IQ, M_SPEED, N_MEAS, N_OUT, N_REF, O_VALUE
 from emasim.plant import actuator as A
 from emasim.plant.motor import limit_voltage
@@ -35,7 +37,6 @@ from emasim.sim.fmi import (
     export_mechanism_fmu,
     export_plant_fmu,
 )
-from emasim.sim.runner import run_comparison, run_scenario
 from emasim.sim.setup import Setup, plant_facts
 
 pytestmark = pytest.mark.skipif(

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from emasim.analysis.reproduce import EXPERIMENTS, HEADLINE, paper_results, reduction
+from emasim.analysis.paper_report import EXPERIMENTS, HEADLINE, paper_results, reduction
 from emasim.cli import app
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"

@@ -3,9 +3,9 @@
 Analysis reads this, never NaN columns; it survives a save and a load.
 """
 
+from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.result import Result
-from emasim.sim.runner import run_scenario
 
 
 def test_a_position_run_describes_its_cascade_elements_sensors_and_units(tmp_path):

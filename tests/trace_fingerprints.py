@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from emasim.experiments.batch import run_comparison
 from emasim.scenarios.loader import builtin_scenarios, load_scenario
-from emasim.sim.runner import run_comparison
 
 SAMPLES = 48
 STORE = Path(__file__).parent / "data" / "trace_fingerprints.npz"

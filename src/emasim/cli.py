@@ -185,10 +185,11 @@ def run(
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
+    from .experiments.batch import run_comparison
+    from .experiments.runs import run_scenario
     from .output import check_folder
     from .scenarios.loader import load_scenario
     from .sim.cosim import check_fmu_trust
-    from .sim.runner import run_comparison, run_scenario
 
     try:
         sc = load_scenario(scenario, settings=setting or [], controllers=controller or [])
@@ -302,8 +303,8 @@ def reproduce(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
 ) -> None:
     """Run every paper experiment and write report.md, report.html and tables.json."""
-    from .analysis.reproduce import EXPERIMENTS
-    from .analysis.reproduce import reproduce as run_all
+    from .analysis.paper_report import EXPERIMENTS
+    from .experiments.reproduction import reproduce as run_all
     from .output import check_folder
 
     names = [e.scenario for e in EXPERIMENTS]

@@ -1,6 +1,8 @@
-"""Reproduce the paper: run every experiment, put our numbers beside the paper's, write a report.
+"""The paper beside us: its numbers, our tables, the headline figures and the report's text.
 
-``emasim reproduce`` runs the comparisons of the shipped paper scenarios and writes, atomically:
+Nothing here runs a simulation: :mod:`emasim.experiments.reproduction` runs the experiments and
+hands their metrics and figures to :func:`build_tables` and :func:`write_report`. ``emasim
+reproduce`` writes, atomically:
 ``report.md`` and ``report.html`` (figures, tables 2-7 and the simulation figures' numbers with
 the paper's values beside ours, the five headline figures of the abstract, the assumptions and
 the tuning record), ``tables.json`` (the same numbers for machines, with a ``headline`` object),
@@ -186,32 +188,6 @@ def simulation_tables(paper: dict, metrics: dict) -> dict:
     return tables
 
 
-def clearance_sweep() -> list[dict]:
-    """cosim-step at every hinge clearance of SWEEP_CLEARANCES_MM, SWEEP_DURATION_S long:
-    steady RMS error and vibration amplitude of the rudder, per controller set."""
-    from ..scenarios.loader import load_scenario
-    from ..sim.runner import run_comparison
-
-    rows = []
-    for clearance in SWEEP_CLEARANCES_MM:
-        settings = [
-            f"plant.linkage.hinge_clearance_mm=[{clearance}, {clearance}, {clearance}, "
-            f"{clearance}]",
-            f"duration_s={SWEEP_DURATION_S}",
-        ]
-        comparison = run_comparison(load_scenario("cosim-step", settings=settings))
-        for label, m in comparison.metrics.items():
-            rows.append(
-                {
-                    "clearance_mm": clearance,
-                    "controller": label,
-                    "steady_error_rms_deg": m["steady_error_rms_deg"],
-                    "chatter_amplitude_deg": m["chatter_amplitude_deg"],
-                }
-            )
-    return rows
-
-
 def build_tables(metrics: dict) -> dict:
     """Every table of the report from {experiment: {label: metrics}}."""
     paper = paper_results()
@@ -394,65 +370,3 @@ NOTES_FILE = "reproduction_notes.md"
 def notes() -> str:
     """The assumptions and the discussion of where we differ (reproduction_notes.md)."""
     return resources.files(__package__).joinpath(NOTES_FILE).read_text()
-
-
-def reproduce(
-    out: str | Path | None = None,
-    only: list[str] | None = None,
-    progress=None,
-    force: bool = False,
-) -> Path:
-    """Run the paper's experiments (or ``only`` those) and write the report folder.
-
-    Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
-    ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
-    The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
-    """
-    from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
-    from ..scenarios.loader import load_scenario
-    from ..sim.runner import run_comparison
-
-    if out is not None:
-        check_folder(Path(out), force)
-    from .plots import plot_bench, plot_clearance_sweep, plot_comparison, save_figure
-
-    chosen = [e for e in EXPERIMENTS if not only or e.scenario in only]
-    comparisons = {}
-    for i, exp in enumerate(chosen):
-        comparisons[exp.scenario] = run_comparison(load_scenario(exp.scenario))
-        if progress is not None:
-            progress((i + 1) / len(chosen))
-    metrics = {name: c.metrics for name, c in comparisons.items()}
-    tables = build_tables(metrics)
-    if "cosim-step" in comparisons:
-        tables["clearance_sweep"] = clearance_sweep()
-
-    def write(folder: Path) -> None:
-        (folder / "figures").mkdir()
-        (folder / "runs").mkdir()
-        figures = {}
-        for name, comparison in comparisons.items():
-            run_folder = folder / "runs" / name
-            run_folder.mkdir()
-            comparison.write_files(run_folder, plot=False)
-            if name.startswith("bench") or name == "cosim-step":
-                fig = plot_bench(comparison.results, name)
-            else:
-                fig = plot_comparison(comparison.results, name)
-            path = f"figures/{name}.png"
-            save_figure(fig, folder / path)
-            figures[name] = [(name, path)]
-        if "clearance_sweep" in tables:
-            path = "figures/clearance-sweep.png"
-            save_figure(plot_clearance_sweep(tables["clearance_sweep"]), folder / path)
-            figures["cosim-step"].append(("clearance sweep", path))
-        write_report(
-            folder, tables, {n: c.scenario for n, c in comparisons.items()}, figures, notes()
-        )
-
-    if out is None:
-        what = "only-" + "-".join(only) if only else "all"
-        return write_folder(
-            fresh_folder(RUNS_ROOT / "reproduce", what), write, unique=True, kind="report"
-        )
-    return write_folder(Path(out), write, force=force, kind="report")

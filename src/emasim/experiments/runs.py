@@ -8,12 +8,12 @@ import numba
 
 from .. import __version__
 from ..analysis.report import run_metrics, undefined_metrics
-from .cosim import check_fmu_trust, cosimulate
-from .engine import simulate
-from .result import Comparison, Result
+from ..sim.cosim import check_fmu_trust, cosimulate
+from ..sim.engine import simulate
+from ..sim.result import Result
 
 
-def _meta(scenario, wall_s: float) -> dict:
+def meta_of(scenario, wall_s: float) -> dict:
     """What a saved result needs to be regenerated and judged: versions, seed, timings."""
     return {
         "emasim_version": __version__,
@@ -41,7 +41,7 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     else:
         result = simulate(scenario.setup(), progress=progress)
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
-    result.meta = _meta(scenario, result.meta["simulation_wall_s"])
+    result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
     result.meta["label"] = label or scenario.controllers_label()
     c = scenario.controllers
     names = {"position": c.position.name if c.position is not None else None, "speed": c.speed.name}
@@ -52,26 +52,3 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     if undefined:
         result.meta["undefined_metrics"] = undefined
     return result
-
-
-def run_comparison(scenario, progress=None, trust_fmu: bool = False) -> Comparison:
-    """Run every controller set of ``scenario.compare`` (or its one set) on the experiment,
-    in parallel (emasim.sim.batch); ``progress`` is told 0 at the start and 1 at the end."""
-    from .batch import run_all
-
-    check_fmu_trust(scenario, trust_fmu)
-    variants = scenario.variants()
-    if progress is not None:
-        progress(0.0)
-    runs = run_all(
-        (v for _, v in variants), trust_fmu=trust_fmu, labels=[label for label, _ in variants]
-    )
-    results = dict(zip((label for label, _ in variants), runs, strict=True))
-    if progress is not None:
-        progress(1.0)
-    wall = sum(r.meta["simulation_wall_s"] for r in results.values())
-    meta = _meta(scenario, wall)
-    meta["real_time_factor"] = wall / (scenario.duration_s * len(variants))
-    return Comparison(
-        results, scenario=scenario.model_dump(mode="json", exclude_none=True), meta=meta
-    )
