@@ -44,8 +44,12 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
     result.meta["label"] = label or scenario.controllers_label()
     c = scenario.controllers
-    names = {"position": c.position.name if c.position is not None else None, "speed": c.speed.name}
-    loops = {slot: names.get(slot, "pi") for slot in result.description.loops}
+    names = {  # the controllers' configured names, not their compiled laws'
+        "position": c.position.name if c.position is not None else None,
+        "speed": c.speed.name,
+        "current": "pi",  # CurrentPI, the library's current law
+    }
+    loops = {slot: names[slot] for slot in result.description.loops}
     result.description = dataclasses.replace(result.description, loops=loops)
     result.metrics = run_metrics(result)
     undefined = undefined_metrics(result.metrics)

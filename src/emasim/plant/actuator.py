@@ -26,13 +26,19 @@ up by name in the elements' declarations (emasim.plant.element): the layouts are
 import numba as nb
 import numpy as np
 
-from ..config import MM, RPM
 from . import friction as fr
 from . import linkage as L
 from .backlash import BACKLASH, dead_zone_force
 from .compliance import COMPLIANCE, spring_force
 from .drivetrain import TRANSMISSION, reflected_torque
-from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State, assemble
+from .element import (
+    Element,
+    Quantity,
+    State,
+    assemble,
+    rod_position_bound,
+    rod_velocity_bound,
+)
 from .friction import FRICTION
 from .motor import MOTOR, current_rates, electromagnetic_torque
 
@@ -46,17 +52,9 @@ ROD = Element(
             "m",
             "rod (load-side) position",
             atol=1e-14,
-            bound=lambda plant: FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM,
+            bound=rod_position_bound,
         ),
-        State(
-            "actuator_velocity_m_s",
-            "m/s",
-            "rod velocity",
-            atol=1e-12,
-            bound=lambda plant: (
-                RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM * plant.ratio_m_per_rad
-            ),
-        ),
+        State("actuator_velocity_m_s", "m/s", "rod velocity", atol=1e-12, bound=rod_velocity_bound),
     ),
     params=(
         Quantity("load_mass_kg", "kg", "M_L: rod + lumped rudder, or the rod alone"),

@@ -21,8 +21,8 @@ spring deflects F/k.
 import numba as nb
 from pydantic import Field
 
-from ..config import MM, RPM, Strict
-from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State
+from ..config import Strict
+from .element import Element, Quantity, State, rod_position_bound, rod_velocity_bound
 
 COMPLIANCE = Element(
     "compliance",
@@ -33,16 +33,14 @@ COMPLIANCE = Element(
             "m",
             "position of the node between the gap and the spring (the nut body)",
             atol=1e-14,
-            bound=lambda plant: FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM,
+            bound=rod_position_bound,
         ),
         State(
             "compliance_node_velocity_m_s",
             "m/s",
             "velocity of the node",
             atol=1e-12,
-            bound=lambda plant: (
-                RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM * plant.ratio_m_per_rad
-            ),
+            bound=rod_velocity_bound,
         ),
     ),
     params=(

@@ -24,8 +24,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..config import MM, RPM
+
 RATED_RUNAWAY = 20.0  # a rated quantity (current, speed) this many times over is a runaway
 FAR_RUNAWAY = 1e3  # a position this many strokes (or a state this many natural scales) away
+
+
+def rod_position_bound(plant) -> float:
+    """A rod-side position (m) this far out is a runaway: FAR_RUNAWAY strokes."""
+    return FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM
+
+
+def rod_velocity_bound(plant) -> float:
+    """A rod-side velocity (m/s) this fast is a runaway: RATED_RUNAWAY times the rated speed
+    seen at the rod."""
+    return RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM * plant.ratio_m_per_rad
 
 
 @dataclass(frozen=True)
