@@ -1,19 +1,23 @@
-"""Paired speed of this tree against an earlier revision, interleaved in one process.
+"""Paired speed of this tree against an earlier revision, in interleaved processes.
 
     python benchmarks/bench_paired.py [--before REV] [--pairs 5] [--quick]
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
-``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder as the package
-``emasim_before`` and imported beside this tree's ``emasim``. For every shipped scenario, the
-first controller set of its comparison is then run alternately on both, ``--pairs`` times each.
-The script reports wall seconds per simulated second, the median of each, and the median of
-the paired ratios (after / before; below 1 is faster). Two runs are timed per scenario:
-``simulate(setup)`` as a script calls it, and the same run with a progress callback, as the
-command line runs it. ``--quick`` (CI) runs 0.05 s of each scenario, one pair.
+``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder. Then
+``--pairs`` times, one process runs the revision and the next runs this tree. Each process
+times every shipped scenario's first controller set once, after a warm-up. Two calls are
+timed per scenario: ``simulate(setup)`` as a script calls it, and the same run with a
+progress callback, as the command line runs it.
+
+The script reports wall seconds per simulated second, the median of each tree, and the
+median of the paired ratios (after / before; below 1 is faster). The two trees cannot share
+one process: numba types the record classes of ``emasim.sim.core`` by name, so two copies of
+one class in one process collide. ``--quick`` (CI) runs 0.05 s of each scenario, one pair.
 """
 
 import argparse
-import importlib
+import json
+import os
 import statistics
 import subprocess
 import sys
@@ -23,16 +27,13 @@ import time
 from io import BytesIO
 from pathlib import Path
 
-import emasim
-from emasim.scenarios.loader import builtin_scenarios
-
 ROOT = Path(__file__).resolve().parents[1]
-BEFORE = "emasim_before"
 QUICK_S = 0.05
+MODES = ("plain", "progress")
 
 
-def extract(rev: str, folder: Path) -> None:
-    """The package emasim at ``rev`` into ``folder/emasim_before``."""
+def extract(rev: str, folder: Path) -> Path:
+    """The source tree of ``rev`` (its ``src`` folder) under ``folder``."""
     archive = subprocess.run(
         ["git", "-C", str(ROOT), "archive", "--format=tar", rev, "src/emasim"],
         check=True,
@@ -40,27 +41,39 @@ def extract(rev: str, folder: Path) -> None:
     ).stdout
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
-    (folder / "src" / "emasim").rename(folder / BEFORE)
+    return folder / "src"
 
 
-def prepared(package: str, name: str, duration_s: float | None):
-    """(simulate, setup) of a scenario's first controller set in one of the two packages."""
-    loader = importlib.import_module(f"{package}.scenarios.loader")
-    engine = importlib.import_module(f"{package}.sim.engine")
-    scenario = loader.load_scenario(name)
-    if scenario.compare:
-        scenario = scenario.variants()[0][1]
-    setup = scenario.setup()
+def measure(duration_s: float | None) -> dict:
+    """In this process: scenario -> mode -> wall seconds per simulated second."""
+    from emasim.scenarios.loader import builtin_scenarios, load_scenario
+    from emasim.sim.engine import simulate
+
+    out = {}
+    for name in sorted(builtin_scenarios()):
+        scenario = load_scenario(name)
+        if scenario.compare:
+            scenario = scenario.variants()[0][1]
+        setup = scenario.setup()
+        if duration_s is not None:
+            setup = setup.with_(duration_s=duration_s)
+        simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # compiled code loaded
+        out[name] = {}
+        for mode in MODES:
+            progress = (lambda fraction: None) if mode == "progress" else None
+            start = time.perf_counter()
+            simulate(setup, progress=progress)
+            out[name][mode] = (time.perf_counter() - start) / setup.duration_s
+    return out
+
+
+def run_tree(src: Path, duration_s: float | None) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(src))
+    cmd = [sys.executable, "-W", "ignore", __file__, "--measure"]
     if duration_s is not None:
-        setup = setup.with_(duration_s=duration_s)
-    engine.simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # compiled code loaded
-    return engine.simulate, setup
-
-
-def timed(simulate, setup, progress) -> float:
-    start = time.perf_counter()
-    simulate(setup, progress=progress)
-    return (time.perf_counter() - start) / setup.duration_s
+        cmd += ["--duration", str(duration_s)]
+    done = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True)
+    return json.loads(done.stdout)
 
 
 def main() -> None:
@@ -68,27 +81,32 @@ def main() -> None:
     parser.add_argument("--before", default="HEAD", help="git revision to compare against")
     parser.add_argument("--pairs", type=int, default=5, help="interleaved runs of each tree")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_S} s runs, one pair")
+    parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--duration", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.measure:
+        print(json.dumps(measure(args.duration)))
+        return
     pairs, duration = (1, QUICK_S) if args.quick else (args.pairs, None)
     with tempfile.TemporaryDirectory() as folder:
-        extract(args.before, Path(folder))
-        sys.path.insert(0, folder)
-        print(f"after: this tree (emasim {emasim.__version__}); before: {args.before}")
-        print("scenario          progress  before s/s  after s/s  median after/before")
-        for name in sorted(builtin_scenarios()):
-            runs = {side: prepared(side, name, duration) for side in (BEFORE, "emasim")}
-            for progress in (None, lambda fraction: None):
-                times = {side: [] for side in runs}
-                for _ in range(pairs):
-                    for side, (simulate, setup) in runs.items():
-                        times[side].append(timed(simulate, setup, progress))
-                before, after = times[BEFORE], times["emasim"]
-                ratio = statistics.median(a / b for a, b in zip(after, before, strict=True))
-                print(
-                    f"{name:16s}  {'yes' if progress else 'no':8s}  "
-                    f"{statistics.median(before):10.4f}  {statistics.median(after):9.4f}  "
-                    f"{ratio:.3f}"
-                )
+        trees = {"before": extract(args.before, Path(folder)), "after": ROOT / "src"}
+        for src in trees.values():
+            run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
+        times = {side: [] for side in trees}
+        for _ in range(pairs):
+            for side, src in trees.items():
+                times[side].append(run_tree(src, duration))
+    print(f"after: this tree; before: {args.before}; {pairs} interleaved pairs of processes")
+    print("scenario          mode      before s/s  after s/s  median after/before")
+    for name in times["before"][0]:
+        for mode in MODES:
+            before = [t[name][mode] for t in times["before"]]
+            after = [t[name][mode] for t in times["after"]]
+            ratio = statistics.median(a / b for a, b in zip(after, before, strict=True))
+            print(
+                f"{name:16s}  {mode:8s}  {statistics.median(before):10.4f}  "
+                f"{statistics.median(after):9.4f}  {ratio:.3f}"
+            )
 
 
 if __name__ == "__main__":
