@@ -4,7 +4,8 @@
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
 ``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder. Then
-``--pairs`` times, one process runs the revision and the next runs this tree. Each process
+``--pairs`` times, one process runs the revision and one runs this tree, the revision first
+in even pairs and second in odd ones (so neither side always runs second). Each process
 times every shipped scenario's first controller set once, after a warm-up. Two calls are
 timed per scenario: ``simulate(setup)`` as a script calls it, and the same run with a
 progress callback, as the command line runs it.
@@ -93,9 +94,9 @@ def main() -> None:
         for src in trees.values():
             run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
         times = {side: [] for side in trees}
-        for _ in range(pairs):
-            for side, src in trees.items():
-                times[side].append(run_tree(src, duration))
+        for i in range(pairs):  # before first, then after first: no side always goes second
+            for side in ("before", "after") if i % 2 == 0 else ("after", "before"):
+                times[side].append(run_tree(trees[side], duration))
     print(f"after: this tree; before: {args.before}; {pairs} interleaved pairs of processes")
     print("scenario          mode      before s/s  after s/s  median after/before")
     for name in times["before"][0]:
