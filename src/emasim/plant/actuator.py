@@ -66,7 +66,8 @@ ROD = Element(
 )
 
 # the plant's elements, in the order of the state and parameter vectors
-ELEMENTS = (MOTOR, FRICTION, TRANSMISSION, BACKLASH, ROD, COMPLIANCE, L.LINKAGE)
+# (optional elements last, so that a plant without them integrates only the first X_LINK)
+ELEMENTS = (MOTOR, FRICTION, TRANSMISSION, BACKLASH, ROD, L.LINKAGE, COMPLIANCE)
 PLANT = assemble(ELEMENTS)
 STATE_NAMES = PLANT.states.names
 N_STATE = len(PLANT.states)
@@ -83,6 +84,7 @@ X_VL = PLANT.states.index("actuator_velocity_m_s")
 X_XN = PLANT.states.index("compliance_node_position_m")
 X_VN = PLANT.states.index("compliance_node_velocity_m_s")
 X_LINK = PLANT.state_offset["linkage"]  # the linkage's 16 states (idle with the lumped rudder)
+X_LINK_END = X_LINK + L.N_LINK
 
 # --- parameter vector (SI), filled by PlantParams.pack ------------------------------------
 P_RS = PLANT.params.index("stator_resistance_ohm")
@@ -117,6 +119,7 @@ P_KS = PLANT.params.index("compliance_stiffness_N_per_m")
 P_CS = PLANT.params.index("compliance_damping_Ns_per_m")
 P_MN = PLANT.params.index("compliance_node_mass_kg")
 P_LINK = PLANT.param_offset["linkage"]  # the linkage's parameters (emasim.plant.linkage layout)
+P_LINK_END = P_LINK + L.N_LINK_PARAMS
 
 LOAD_LUMPED = 0
 LOAD_LINKAGE = 1
@@ -230,9 +233,10 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
         dx[X_XN] = dx[X_VN] = 0.0
     dx[X_XL] = x[X_VL]
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
-        q = p[P_LINK:]
+        q = p[P_LINK:P_LINK_END]
         hinges = np.empty((L.N_HINGES, 2))
-        f_axial = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], -t_rudder, q, dx[X_LINK:], hinges)
+        y, dy = x[X_LINK:X_LINK_END], dx[X_LINK:X_LINK_END]
+        f_axial = L.linkage_rhs(y, x[X_XL], x[X_VL], -t_rudder, q, dy, hinges)
         swing = x[X_LINK + L.N_POS + L.PHI]
         centripetal = (q[L.L0] + x[X_XL]) * swing * swing
         dx[X_VL] = (f_rod + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
@@ -242,9 +246,12 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def active_states(p):
-    """How many states move: all with the linkage, the drive's X_LINK without (the linkage's
-    states then stay as they are and rhs leaves their derivatives untouched)."""
-    return N_STATE if p[P_LOAD_MODEL] == LOAD_LINKAGE else X_LINK
+    """How many states move: the drive's X_LINK in a plant with neither the linkage nor the
+    compliance, else all (an absent element's states then stay as they are: rhs sets their
+    derivatives to zero, or leaves the zeros the stages start with)."""
+    if p[P_LOAD_MODEL] == LOAD_LINKAGE or p[P_COMPLIANCE] != 0.0:
+        return N_STATE
+    return X_LINK
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -275,7 +282,8 @@ def linkage_outputs(x, p, out):
         return
     hinges = np.empty((L.N_HINGES, 2))
     rates = np.empty(L.N_LINK)
-    out[0] = L.linkage_rhs(x[X_LINK:], x[X_XL], x[X_VL], 0.0, p[P_LINK:], rates, hinges)
+    y, q = x[X_LINK:X_LINK_END], p[P_LINK:P_LINK_END]
+    out[0] = L.linkage_rhs(y, x[X_XL], x[X_VL], 0.0, q, rates, hinges)
     for h in range(L.N_HINGES):  # hinge order in linkage.py: H1, H2, H3, H4 = 0..3
         out[1 + h] = hinges[h, 1]
         out[1 + L.N_HINGES + h] = hinges[h, 0]

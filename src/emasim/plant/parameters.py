@@ -281,7 +281,7 @@ class PlantParams(Strict):
         if self.linkage is not None:
             p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
             p[A.P_ML] = self.linkage.rod_mass_kg
-            p[A.P_LINK :] = self.linkage.pack()
+            p[A.P_LINK : A.P_LINK_END] = self.linkage.pack()
         return p
 
     def initial_state(self) -> np.ndarray:
@@ -289,5 +289,5 @@ class PlantParams(Strict):
         pose (every pin centred in its hole)."""
         x = np.zeros(A.N_STATE)
         if self.linkage is not None:
-            x[A.X_LINK :] = L.rigid_pose(0.0, self.linkage.pack())
+            x[A.X_LINK : A.X_LINK_END] = L.rigid_pose(0.0, self.linkage.pack())
         return x

@@ -65,7 +65,7 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
         )
     )
     q = plant.linkage.pack()
-    y = linked.x0[A.X_LINK :].copy()
+    y = linked.x0[A.X_LINK : A.X_LINK_END].copy()
     hinges = np.zeros((L.N_HINGES, 2))
     n = linked.n_ticks
     held = np.zeros((n + 1, L.N_LINK))
@@ -130,7 +130,7 @@ def _mechanism_outputs(result, linkage_states: np.ndarray, packed: np.ndarray) -
     x = np.zeros(A.N_STATE)
     position, velocity = result["actuator_position_m"], result["actuator_velocity_m_s"]
     for i, y in enumerate(linkage_states):
-        x[A.X_XL], x[A.X_VL], x[A.X_LINK :] = position[i], velocity[i], y
+        x[A.X_XL], x[A.X_VL], x[A.X_LINK : A.X_LINK_END] = position[i], velocity[i], y
         A.linkage_outputs(x, packed, result.data[i, first : first + A.N_LINKAGE_OUTPUTS])
 
 

@@ -53,7 +53,7 @@ def peak_rod_load_N(setup) -> float:
     times = np.linspace(0.0, setup.duration_s, LOAD_SAMPLES)
     lever = 0.0
     if plant[A.P_LOAD_MODEL] == A.LOAD_LINKAGE:
-        q = plant[A.P_LINK :]
+        q = plant[A.P_LINK : A.P_LINK_END]
         ds = 1e-6
         lever = abs(L.rigid_pose(ds, q)[L.TD] - L.rigid_pose(-ds, q)[L.TD]) / (2 * ds)
     loads = [
