@@ -208,3 +208,22 @@ def test_json_is_valid_json():
         "b": [None, 1.0],
         "c": {"d": None},
     }
+
+
+def test_force_never_deletes_a_file_a_user_put_into_an_emasim_result(tmp_path):
+    target = write_folder(tmp_path / "run", fill)
+    (target / "my_notes.txt").write_text("observations")
+    with pytest.raises(OutputError, match="emasim did not write .my_notes.txt"):
+        write_folder(target, fill, force=True)
+    assert (target / "my_notes.txt").read_text() == "observations"
+    (target / "my_notes.txt").unlink()
+    write_folder(target, fill, force=True)  # only its own files again: replaceable
+
+
+def test_a_dead_runs_old_copy_holding_a_users_file_is_kept(tmp_path):
+    target = write_folder(tmp_path / "run", fill)
+    old = tmp_path / f".run.old-{dead_pid()}-abcdef12"
+    target.rename(old)
+    (old / "mine.txt").write_text("keep")
+    assert clean_leftovers(tmp_path) == []
+    assert (old / "mine.txt").read_text() == "keep"

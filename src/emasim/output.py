@@ -1,10 +1,12 @@
 """Writing results without ever touching anything emasim did not create.
 
 Every folder emasim writes (a run, a comparison, a report) holds a marker file, ``MARKER``,
-written first. A folder is *an emasim result* when it holds that marker. The rules:
+written first and rewritten at the end with the manifest of the files emasim put there. A
+folder is *an emasim result* when it holds that marker. The rules:
 
 * a target that does not exist, or an empty folder, is written;
-* an emasim result is replaced only with ``force=True`` (the command line's ``--force``);
+* an emasim result is replaced only with ``force=True`` (the command line's ``--force``), and
+  only while it holds nothing but its manifest's files: a file a user added keeps it;
 * anything else (a user's folder, a file, a link) is refused, with or without ``force``.
 
 Files follow the same rules, with ``is_ours`` telling whether an existing file is emasim's
@@ -77,6 +79,27 @@ def is_emasim_folder(path: Path) -> bool:
     return path.is_dir() and not path.is_symlink() and (path / MARKER).is_file()
 
 
+def foreign_files(folder: Path) -> list[str]:
+    """The files in an emasim result that emasim did not write: every file not in the
+    marker's manifest (all of them when the marker has none). [] means emasim may delete it."""
+    try:
+        listed = set(json.loads((folder / MARKER).read_text())["files"])
+    except (OSError, ValueError, KeyError, TypeError):
+        listed = set()
+    return [name for name in _files_in(folder) if name not in listed]
+
+
+def _files_in(folder: Path) -> list[str]:
+    """Relative paths of every file and link under ``folder`` but the marker."""
+    names = []
+    for root, dirs, files in os.walk(folder):
+        for name in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
+            relative = Path(root, name).relative_to(folder).as_posix()
+            if relative != MARKER:
+                names.append(relative)
+    return sorted(names)
+
+
 def _is_empty_folder(path: Path) -> bool:
     return path.is_dir() and not path.is_symlink() and not any(path.iterdir())
 
@@ -100,6 +123,7 @@ def check_folder(path: Path, force: bool, what: str = "--out") -> None:
         return
     if is_emasim_folder(path):
         if force:
+            _refuse_foreign(path, what)
             return
         raise OutputError(
             f"{what} {path}: holds an emasim result already; add --force to replace it, "
@@ -110,6 +134,17 @@ def check_folder(path: Path, force: bool, what: str = "--out") -> None:
         f"{what} {path}: is {kind} that emasim did not write; emasim never replaces it "
         "(choose another path)"
     )
+
+
+def _refuse_foreign(path: Path, what: str) -> None:
+    """Refuse to replace an emasim result into which someone put files of their own."""
+    foreign = foreign_files(path)
+    if foreign:
+        raise OutputError(
+            f"{what} {path}: holds files emasim did not write ({foreign[0]}"
+            + (f" and {len(foreign) - 1} more" if len(foreign) > 1 else "")
+            + "); move them out first, or choose another path"
+        )
 
 
 def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str) -> None:
@@ -155,7 +190,10 @@ def clean_leftovers(folder: Path) -> list[Path]:
             continue
         with contextlib.suppress(OSError):
             if entry.is_dir():
-                if not (is_emasim_folder(entry) or _is_empty_folder(entry)):
+                ours = is_emasim_folder(entry) and (
+                    ".tmp-" in entry.name or not foreign_files(entry)
+                )
+                if not (ours or _is_empty_folder(entry)):
                     continue
                 shutil.rmtree(entry)
             else:
@@ -223,6 +261,7 @@ def write_folder(
     try:
         write_marker(tmp, kind)
         write(tmp)
+        write_marker(tmp, kind, files=_files_in(tmp))
         candidates = [path] + [path.with_name(f"{path.name}-{n}") for n in range(2, _MAX_SUFFIX)]
         for candidate in candidates if unique else candidates[:1]:
             if _move_into_place(tmp, candidate, force, what, refuse=not unique):
@@ -233,17 +272,20 @@ def write_folder(
         raise
 
 
-def write_marker(folder: Path, kind: str) -> None:
-    """The marker that makes ``folder`` an emasim result (written before anything else)."""
+def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> None:
+    """The marker that makes ``folder`` an emasim result: written first, then again with the
+    manifest of ``files`` emasim wrote (relative paths), which alone it may ever delete."""
     from . import __version__
 
-    (folder / MARKER).write_text(json_text({"kind": kind, "emasim_version": __version__}))
+    record = {"kind": kind, "emasim_version": __version__, "files": files or []}
+    (folder / MARKER).write_text(json_text(record))
 
 
 def _move_into_place(tmp: Path, path: Path, force: bool, what: str, refuse: bool) -> bool:
     """Rename ``tmp`` to ``path``; False if the place was taken and ``refuse`` is off."""
     with _locked(path.parent):
         if force and is_emasim_folder(path):
+            _refuse_foreign(path, what)  # again, under the lock
             old = _temporary(path, "old")
             path.rename(old)
             tmp.rename(path)
