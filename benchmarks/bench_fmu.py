@@ -12,12 +12,9 @@ import argparse
 import tempfile
 import time
 
-import numpy as np
-
-from emasim.plant import actuator as A
 from emasim.plant.presets import sea805_linkage
 from emasim.signals import ZERO
-from emasim.sim.core import SignalArrays
+from emasim.sim.core import SignalArrays, new_workspace
 from emasim.sim.fmi import FmuSlave, export_plant_fmu, plant_substeps
 
 TS, SUBSTEPS = 1e-4, 10
@@ -35,7 +32,7 @@ def per_tick_fmu(path, ticks: int) -> float:
 
 def per_tick_in_process(plant, ticks: int) -> float:
     p, x = plant.pack(), plant.initial_state()
-    work = np.zeros((5, A.N_STATE))
+    work = new_workspace()
     h = TS / SUBSTEPS
     signals = SignalArrays(ZERO, ZERO, ZERO, ZERO)  # no reference, no loads
     plant_substeps(0.0, x, 0.0, 20.0, p, signals, h, SUBSTEPS, work)  # compiled, cached

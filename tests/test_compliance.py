@@ -18,6 +18,7 @@ from emasim.plant.compliance import ComplianceParams
 from emasim.plant.presets import sea805
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO
+from emasim.sim.core import new_workspace
 from emasim.sim.engine import plant_step, simulate
 
 K_SPRING = 2.0e6  # N/m
@@ -51,7 +52,7 @@ def ringing_frequency(plant, duration_s: float) -> float:
     x[A.X_XL] = -1e-5  # the rod 10 um back; the node where gap and spring balance
     spring, gap = plant.compliance.stiffness_N_per_m, plant.backlash.stiffness_N_per_m
     x[A.X_XN] = spring * x[A.X_XL] / (spring + gap)
-    work = np.zeros((5, A.N_STATE))
+    work = new_workspace()
     n = round(duration_s / H)
     rod = np.empty(n)
     for j in range(n):

@@ -199,13 +199,14 @@ def motor_torque(x, p):
 
 
 @nb.njit(cache=True, error_model="numpy")
-def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
+def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
     """Write dx/dt of the actuator into ``dx``.
 
     x state; (u_d, u_q) applied stator voltages (V); t_load the load torque TL on the motor
     shaft (N*m); f_load the external force F_L on the rod (N); t_rudder the load torque on the
     linkage's rudder shaft (N*m, opposing positive deflection; the lumped stage takes its rudder
-    load as part of f_load); p parameters.
+    load as part of f_load); p parameters. ``hinges`` (N_HINGES x 2) receives the linkage's
+    hinge penetrations and normal forces (untouched with the lumped rudder).
     """
     w = x[X_WM]
     w_e = p[P_NP] * w
@@ -234,7 +235,6 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx):
     dx[X_XL] = x[X_VL]
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
         q = p[P_LINK:P_LINK_END]
-        hinges = np.empty((L.N_HINGES, 2))
         y, dy = x[X_LINK:X_LINK_END], dx[X_LINK:X_LINK_END]
         f_axial = L.linkage_rhs(y, x[X_XL], x[X_VL], -t_rudder, q, dy, hinges)
         swing = x[X_LINK + L.N_POS + L.PHI]

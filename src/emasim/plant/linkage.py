@@ -144,19 +144,15 @@ LINKAGE = Element(
     presence="load_model",  # LOAD_LUMPED (0) or LOAD_LINKAGE (1), a parameter of the rod
 )
 
-# generalised forces gathered over the hinges (the layout of ``gen`` in linkage_rhs)
-(
-    G_TAU_A0,  # torque about the actuator pivot A0, N m
-    G_FX_B,  # force on the rocker B, N
-    G_FY_B,
-    G_M_B,  # moment on B about its origin, N m
-    G_FX_C,  # force on the link C, N
-    G_FY_C,
-    G_M_C,  # moment on C about its centre, N m
-    G_M_D,  # moment on the rocker arm D about O, N m
-    G_AXIAL,  # axial force of the linkage on the rod, N
-) = range(9)
-N_GENERALISED = 9
+# generalised forces gathered over the hinges: linkage_rhs sums them in the rows of dy that
+# then receive the accelerations they drive (the rate rows N_POS + PHI .. N_POS + TD), so that
+# the right-hand side allocates nothing; the axial force on the rod is returned
+G_TAU_A0 = N_POS + PHI  # torque about the actuator pivot A0, N m
+G_FX_B, G_FY_B = N_POS + XB, N_POS + YB  # force on the rocker B, N
+G_M_B = N_POS + TB  # moment on B about its origin, N m
+G_FX_C, G_FY_C = N_POS + XC, N_POS + YC  # force on the link C, N
+G_M_C = N_POS + TC  # moment on C about its centre, N m
+G_M_D = N_POS + TD  # moment on the rocker arm D about O, N m
 
 # bodies
 GROUND, ROD, BODY_B, BODY_C, BODY_D = range(5)
@@ -189,48 +185,52 @@ def _hinge_bodies(hinge):
     return BODY_C, BODY_D
 
 
-# columns of the body frame table built by _frames
+# the fields of a body's frame in the table built by _frames
 F_RX, F_RY, F_VX, F_VY, F_COS, F_SIN, F_OMEGA = range(7)
 
 
 @nb.njit(cache=True, error_model="numpy")
 def _frames(y, s, s_dot, q):
-    """Frame of every body, one row each: reference point, its velocity, cos and sin of the
+    """Frame of every body, one tuple each: reference point, its velocity, cos and sin of the
     orientation, angular rate. The rod's frame sits at the rod end, turning with phi; the
-    ground's is the identity at the origin (its points are given in world coordinates)."""
-    f = np.zeros((5, 7))
+    ground's is the identity at the origin (its points are given in world coordinates). A
+    tuple of tuples, not an array: it lives in registers, and the right-hand side allocates
+    nothing."""
     v = y[N_POS:]
-    f[GROUND, F_COS] = 1.0
     phi, w = y[PHI], v[PHI]
     r = q[L0] + s
     ux, uy = math.cos(phi), math.sin(phi)
-    f[ROD] = (
-        q[A0X] + r * ux,
-        q[A0Y] + r * uy,
-        s_dot * ux - r * w * uy,
-        s_dot * uy + r * w * ux,
-        ux,
-        uy,
-        w,
+    return (
+        (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0),
+        (
+            q[A0X] + r * ux,
+            q[A0Y] + r * uy,
+            s_dot * ux - r * w * uy,
+            s_dot * uy + r * w * ux,
+            ux,
+            uy,
+            w,
+        ),
+        (y[XB], y[YB], v[XB], v[YB], math.cos(y[TB]), math.sin(y[TB]), v[TB]),
+        (y[XC], y[YC], v[XC], v[YC], math.cos(y[TC]), math.sin(y[TC]), v[TC]),
+        (q[OX], q[OY], 0.0, 0.0, math.cos(y[TD]), math.sin(y[TD]), v[TD]),
     )
-    f[BODY_B] = (y[XB], y[YB], v[XB], v[YB], math.cos(y[TB]), math.sin(y[TB]), v[TB])
-    f[BODY_C] = (y[XC], y[YC], v[XC], v[YC], math.cos(y[TC]), math.sin(y[TC]), v[TC])
-    f[BODY_D] = (q[OX], q[OY], 0.0, 0.0, math.cos(y[TD]), math.sin(y[TD]), v[TD])
-    return f
 
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def _point(f, body, lx, ly):
     """World position of a body-fixed point (local lx, ly)."""
-    c, s = f[body, F_COS], f[body, F_SIN]
-    return f[body, F_RX] + c * lx - s * ly, f[body, F_RY] + s * lx + c * ly
+    frame = f[body]
+    c, s = frame[F_COS], frame[F_SIN]
+    return frame[F_RX] + c * lx - s * ly, frame[F_RY] + s * lx + c * ly
 
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def _velocity_at(f, body, px, py):
     """Velocity of the material point of ``body`` that is at (px, py)."""
-    w = f[body, F_OMEGA]
-    return f[body, F_VX] - w * (py - f[body, F_RY]), f[body, F_VY] + w * (px - f[body, F_RX])
+    frame = f[body]
+    w = frame[F_OMEGA]
+    return frame[F_VX] - w * (py - frame[F_RY]), frame[F_VY] + w * (px - frame[F_RX])
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -268,17 +268,18 @@ def hinge_contact(hinge, y, s, s_dot, q):
 
 @nb.njit(cache=True, error_model="numpy")
 def _apply(body, fx, fy, px, py, f, q, gen):
-    """Add a force at a point to the generalised forces of a body.
+    """Add a force at a point to the generalised forces of a body; return its push along the
+    rod axis (N), which only the rod feels.
 
-    gen layout: the G_* constants (torque about A0, forces and moments on B and C, moment on
-    D, the axial force on the rod)."""
+    gen: indexed by the G_* constants (torque about A0, forces and moments on B and C,
+    moment on D)."""
     if body == GROUND:
-        return
+        return 0.0
     if body == ROD:
         gen[G_TAU_A0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
-        gen[G_AXIAL] += f[ROD, F_COS] * fx + f[ROD, F_SIN] * fy
-        return
-    moment = (px - f[body, F_RX]) * fy - (py - f[body, F_RY]) * fx
+        return f[ROD][F_COS] * fx + f[ROD][F_SIN] * fy
+    frame = f[body]
+    moment = (px - frame[F_RX]) * fy - (py - frame[F_RY]) * fx
     if body == BODY_B:
         gen[G_FX_B] += fx
         gen[G_FY_B] += fy
@@ -289,6 +290,7 @@ def _apply(body, fx, fy, px, py, f, q, gen):
         gen[G_M_C] += moment
     else:
         gen[G_M_D] += moment
+    return 0.0
 
 
 @nb.njit(cache=True, error_model="numpy")
@@ -300,7 +302,10 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     hinge's penetration (m) and normal force (N).
     """
     f = _frames(y, s, s_dot, q)
-    gen = np.zeros(N_GENERALISED)
+    for i in range(N_POS):
+        dy[i] = y[N_POS + i]
+        dy[N_POS + i] = 0.0  # the generalised forces G_* are summed here
+    axial = 0.0
     for h in range(N_HINGES):
         fx, fy, px, py, delta, fn = _contact(h, f, q)
         hinges[h, 0] = delta
@@ -308,23 +313,21 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
         if fn == 0.0:
             continue
         pin_body, hole_body = _hinge_bodies(h)
-        _apply(pin_body, fx, fy, px, py, f, q, gen)
-        _apply(hole_body, -fx, -fy, px, py, f, q, gen)
+        axial += _apply(pin_body, fx, fy, px, py, f, q, dy)
+        axial += _apply(hole_body, -fx, -fy, px, py, f, q, dy)
     v = y[N_POS:]
     r = q[L0] + s
-    for i in range(N_POS):
-        dy[i] = v[i]
-    dy[N_POS + PHI] = (gen[G_TAU_A0] - 2.0 * q[MASS_ROD] * r * s_dot * v[PHI]) / (
+    dy[N_POS + PHI] = (dy[G_TAU_A0] - 2.0 * q[MASS_ROD] * r * s_dot * v[PHI]) / (
         q[I_E] + q[MASS_ROD] * r * r
     )
-    dy[N_POS + XB] = gen[G_FX_B] / q[MASS_B]
-    dy[N_POS + YB] = gen[G_FY_B] / q[MASS_B]
-    dy[N_POS + TB] = gen[G_M_B] / q[I_B]
-    dy[N_POS + XC] = gen[G_FX_C] / q[MASS_C]
-    dy[N_POS + YC] = gen[G_FY_C] / q[MASS_C]
-    dy[N_POS + TC] = gen[G_M_C] / q[I_C]
-    dy[N_POS + TD] = (gen[G_M_D] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
-    return gen[G_AXIAL]
+    dy[N_POS + XB] = dy[G_FX_B] / q[MASS_B]
+    dy[N_POS + YB] = dy[G_FY_B] / q[MASS_B]
+    dy[N_POS + TB] = dy[G_M_B] / q[I_B]
+    dy[N_POS + XC] = dy[G_FX_C] / q[MASS_C]
+    dy[N_POS + YC] = dy[G_FY_C] / q[MASS_C]
+    dy[N_POS + TC] = dy[G_M_C] / q[I_C]
+    dy[N_POS + TD] = (dy[G_M_D] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
+    return axial
 
 
 def _circle_intersection(c1, r1, c2, r2, near):

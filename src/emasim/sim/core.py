@@ -11,7 +11,9 @@ One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
   a law given inside a tuple through an experimental path, with a warning at every call);
   their arrays travel as one tuple;
 * :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed and
-  which loops close.
+  which loops close;
+* :class:`Workspace`: the scratch arrays of the RK4 stages and of the control tick, made by
+  the caller so that the loop can borrow them (emasim.sim.borrowed).
 
 :meth:`emasim.sim.setup.Setup.start` builds them from a Setup, which a scenario builds
 (:meth:`emasim.scenarios.schema.Scenario.setup`); the engine, the reference path, the
@@ -37,6 +39,9 @@ import numpy as np
 from numba import types
 
 from ..control.slot import CONTROLLER_TYPE
+from ..interface import N_MEAS, N_OUT, N_REF
+from ..plant.actuator import N_STATE
+from ..plant.linkage import N_HINGES
 
 F8 = types.float64
 I8 = types.int64
@@ -78,6 +83,18 @@ class Timing(NamedTuple):
     loop: int
 
 
+class Workspace(NamedTuple):
+    """Scratch reused from tick to tick: the RK4 stage derivatives k1..k4 and stage state and
+    the linkage's hinge table (emasim.sim.engine.plant_step), and the measurements, reference
+    and output of a slot."""
+
+    rk4: tuple
+    hinges: np.ndarray
+    meas: np.ndarray
+    ref: np.ndarray
+    out: np.ndarray
+
+
 class Core(NamedTuple):
     """Everything :func:`emasim.sim.engine.run_ticks` reads besides the state and the trace,
     in its argument order: ``run_ticks(k0, k1, x, *core, trace, status)``."""
@@ -90,12 +107,26 @@ class Core(NamedTuple):
     current_law: object
     slots: tuple  # ((params, state) of the position, the speed and the current slot)
     timing: Timing
+    workspace: Workspace
 
 
 PLANT_TYPE = types.NamedUniTuple(F8A, 2, PlantArrays)
 SIGNALS_TYPE = types.NamedUniTuple(F8A, 4, SignalArrays)
 SENSORS_TYPE = types.NamedTuple((F8A2, F8A), SensorArrays)
 TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8), Timing)
+RK4_TYPE = types.UniTuple(F8A, 5)
+WORKSPACE_TYPE = types.NamedTuple((RK4_TYPE, F8A2, F8A, F8A, F8A), Workspace)
 SLOTS_TYPE = types.UniTuple(types.UniTuple(F8A, 2), 3)  # (params, state) of each slot
 LAW_TYPE = CONTROLLER_TYPE
 POSITION_SLOT, SPEED_SLOT, CURRENT_SLOT = range(3)
+
+
+def new_workspace() -> Workspace:
+    """A fresh :class:`Workspace`."""
+    return Workspace(
+        tuple(np.zeros(N_STATE) for _ in range(5)),
+        np.zeros((N_HINGES, 2)),
+        np.zeros(N_MEAS),
+        np.zeros(N_REF),
+        np.zeros(N_OUT),
+    )

@@ -22,9 +22,6 @@ from ..errors import SimulationDiverged
 from ..interface import (
     M_POSITION,
     M_SPEED,
-    N_MEAS,
-    N_OUT,
-    N_REF,
     O_RATE,
     O_UD,
     O_UQ,
@@ -39,6 +36,7 @@ from ..plant.element import Layout, Quantity
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
+from .borrowed import borrowed
 from .core import (
     CURRENT_SLOT,
     F8A,
@@ -51,6 +49,11 @@ from .core import (
     SLOTS_TYPE,
     SPEED_SLOT,
     TIMING_TYPE,
+    WORKSPACE_TYPE,
+    PlantArrays,
+    SensorArrays,
+    SignalArrays,
+    Workspace,
 )
 from .diagnosis import likely_cause
 from .result import Result, RunDescription
@@ -149,7 +152,7 @@ def control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch):
     return u_d, u_q, r, iq_ref, position_ref
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def _stage(xs, x, k, dt, z, n):
     """xs = x + dt k for the first n states but the bristle, which is set to z."""
     for i in range(n):
@@ -159,7 +162,8 @@ def _stage(xs, x, k, dt, z, n):
 
 @nb.njit(cache=True, error_model="numpy")
 def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
-    """Advance x by one RK4 sub-step h with the voltages held; work is a (5, N_STATE) scratch.
+    """Advance x by one RK4 sub-step h with the voltages held; ``work`` is a
+    :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
 
     The loads come as the three encoded signals, not as the SignalArrays record: passing a
     record into this function, called at every sub-step, costs 15 % of the lumped loop
@@ -172,7 +176,8 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     its edge would leak into the step before it, a first-order error) and second-order
     accurate for smooth loads.
     """
-    k1, k2, k3, k4, xs = work[0], work[1], work[2], work[3], work[4]
+    k1, k2, k3, k4, xs = work.rk4
+    hinges = work.hinges
     n = A.active_states(p)
     z0 = x[A.X_Z]
     w0 = x[A.X_WM]
@@ -180,13 +185,13 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     t_load = signal_value(motor_load, t + 0.5 * h)
     f_load = signal_value(rod_load, t + 0.5 * h)
     r_load = signal_value(rudder_load, t + 0.5 * h)
-    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, k1)
+    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, k1, hinges)
     _stage(xs, x, k1, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k2)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k2, hinges)
     _stage(xs, x, k2, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k3)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k3, hinges)
     _stage(xs, x, k3, h, z_full, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k4)
+    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k4, hinges)
     for i in range(n):
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
@@ -224,6 +229,43 @@ def record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, mea
     row[C_MEASURED_POSITION] = meas[M_POSITION]
 
 
+@nb.njit(cache=True, inline="always", error_model="numpy")
+def _borrow(x, plant, signals, sensors, slots, workspace, trace, status):
+    """Every array run_ticks is given, as a borrowed view (emasim.sim.borrowed)."""
+    rk4 = workspace.rk4
+    return (
+        borrowed(x),
+        PlantArrays(borrowed(plant.params), borrowed(plant.limits)),
+        SignalArrays(
+            borrowed(signals.reference),
+            borrowed(signals.motor_load),
+            borrowed(signals.rod_load),
+            borrowed(signals.rudder_load),
+        ),
+        SensorArrays(borrowed(sensors.table), borrowed(sensors.gap)),
+        (
+            (borrowed(slots[0][0]), borrowed(slots[0][1])),
+            (borrowed(slots[1][0]), borrowed(slots[1][1])),
+            (borrowed(slots[2][0]), borrowed(slots[2][1])),
+        ),
+        Workspace(
+            (
+                borrowed(rk4[0]),
+                borrowed(rk4[1]),
+                borrowed(rk4[2]),
+                borrowed(rk4[3]),
+                borrowed(rk4[4]),
+            ),
+            borrowed(workspace.hinges),
+            borrowed(workspace.meas),
+            borrowed(workspace.ref),
+            borrowed(workspace.out),
+        ),
+        borrowed(trace),
+        borrowed(status),
+    )
+
+
 RUN_SIG = types.void(
     types.int64,  # k0
     types.int64,  # k1
@@ -236,6 +278,7 @@ RUN_SIG = types.void(
     LAW_TYPE,  # current
     SLOTS_TYPE,
     TIMING_TYPE,
+    WORKSPACE_TYPE,
     F8A2,  # trace
     types.int64[::1],  # status
 )
@@ -254,11 +297,12 @@ def run_ticks(
     current_law,
     slots,
     timing,
+    workspace,
     trace,
     status,
 ):
     """Run ticks k0 .. k1-1 in place on x, the slots' states and the sensors' play operators
-    (the records of emasim.sim.core).
+    (the records of emasim.sim.core), every array borrowed (emasim.sim.borrowed).
 
     Rows of ``trace`` are written at every ``record_every``-th tick (row k // record_every).
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
@@ -266,10 +310,12 @@ def run_ticks(
     """
     if k0 == 0:
         seed_noise(timing.seed)
+    x, plant, signals, sensors, slots, workspace, trace, status = _borrow(
+        x, plant, signals, sensors, slots, workspace, trace, status
+    )
     ts = timing.sample_period_s
     h = ts / timing.substeps
-    work = np.zeros((5, A.N_STATE))
-    scratch = (np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT))
+    scratch = (workspace.meas, workspace.ref, workspace.out)
     p = plant.params
     motor_load, rod_load, rudder_load = signals.motor_load, signals.rod_load, signals.rudder_load
     laws = (position_law, speed_law, current_law)
@@ -282,7 +328,7 @@ def run_ticks(
             row = trace[k // timing.record_every]
             record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, scratch[0])
         for j in range(timing.substeps):
-            plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work)
+            plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, workspace)
         if not check_state(x, plant.limits, status, k + 1):
             return
 

@@ -13,8 +13,8 @@ import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from ..interface import N_MEAS, N_OUT, N_REF
 from ..plant import actuator as A
+from ..plant import linkage as L
 from ..plant.sensors import seed_noise
 from ..signals import signal_value
 from .engine import TRACE_COLUMNS, control_tick, record
@@ -29,10 +29,11 @@ def _rhs(t, x, u_d, u_q, p, signals, t_end):
     boundary belongs to the next tick, as it does in the engine."""
     t_in = min(t, t_end - 1e-9 * (abs(t_end) + 1e-3))
     dx = np.zeros(A.N_STATE)  # the linkage rows stay 0 with the lumped rudder
+    hinges = np.empty((L.N_HINGES, 2))
     t_load = signal_value(signals.motor_load, t_in)
     f_load = signal_value(signals.rod_load, t_in)
     r_load = signal_value(signals.rudder_load, t_in)
-    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, dx)
+    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, dx, hinges)
     return dx
 
 
@@ -50,8 +51,8 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
     ts = setup.sample_period_s
     run = setup.start()
     x = run.x
-    plant, signals, sensors, *laws, slots, timing = run.core
-    scratch = (np.empty(N_MEAS), np.empty(N_REF), np.empty(N_OUT))
+    plant, signals, sensors, *laws, slots, timing, workspace = run.core
+    scratch = (workspace.meas, workspace.ref, workspace.out)
     seed_noise(setup.seed)
     start = time.perf_counter()
     for k in range(setup.n_ticks):

@@ -11,7 +11,7 @@ from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
 from ..signals import ZERO
-from .core import Core, PlantArrays, SensorArrays, SignalArrays, Timing
+from .core import Core, PlantArrays, SensorArrays, SignalArrays, Timing, new_workspace
 from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
 
 
@@ -118,6 +118,7 @@ class Setup:
                 self.seed,
                 self.loop_structure,
             ),
+            new_workspace(),
         )
         return RunState(
             trace=np.full(((n + self.record_every - 1) // self.record_every, N_COLUMNS), np.nan),

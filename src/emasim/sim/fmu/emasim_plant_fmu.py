@@ -13,7 +13,7 @@ from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 from emasim import __version__
 from emasim.plant import actuator as A
 from emasim.signals import Constant, encode
-from emasim.sim.core import SignalArrays
+from emasim.sim.core import SignalArrays, new_workspace
 from emasim.sim.fmi import (
     CONSTANT_VALUE,
     DEFAULT_STEP_S,
@@ -43,7 +43,7 @@ class EmasimPlant(Fmi2Slave):
         self.x = np.array(data["initial_state"], dtype=np.float64)
         if self.p.size != A.N_PARAMS or self.x.size != A.N_STATE:
             raise ValueError(f"{PLANT_RESOURCE} does not fit this emasim ({__version__})")
-        self.work = np.zeros((5, A.N_STATE))
+        self.work = new_workspace()
         self.signals = SignalArrays(*(encode([Constant(value=0.0)]) for _ in range(4)))
         self.step_s = DEFAULT_STEP_S
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
