@@ -129,7 +129,7 @@ FRICTION_COULOMB = 1
 FRICTION_LUGRE = 2
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def friction(w, z, p):
     """Friction torque on the motor shaft (N*m) and bristle rate dz/dt (rad/s).
 
@@ -145,7 +145,7 @@ def friction(w, z, p):
     return 0.0, 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_step(z0, w, h, p):
     """Exact bristle update over h with the speed w held (see friction.bristle_update)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -153,7 +153,7 @@ def bristle_step(z0, w, h, p):
     return fr.bristle_update(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, w, h, p):
     """Exact bristle states after h/2 and h with the speed w held (LuGre only)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -161,7 +161,7 @@ def bristle_half_and_full_step(z0, w, h, p):
     return fr.bristle_half_and_full_step(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def backlash_force(x, p):
     """Contact force Fb across the backlash gap (N), positive when the screw pushes forward:
     on the rod, or on the compliance's node when the plant has one."""
@@ -175,7 +175,7 @@ def backlash_force(x, p):
     )
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def compliance_force(x, p):
     """The series spring-damper's force on the rod (N); NaN without the element."""
     if p[P_COMPLIANCE] == 0.0:
@@ -183,7 +183,7 @@ def compliance_force(x, p):
     return spring_force(x[X_XN], x[X_VN], x[X_XL], x[X_VL], p[P_KS], p[P_CS])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def drivetrain_force(x, p):
     """The force the drive train puts on the rod (N): what a load cell on the rod reads (the
     spring's with the compliance, the gap's without)."""
@@ -192,13 +192,13 @@ def drivetrain_force(x, p):
     return backlash_force(x, p)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def motor_torque(x, p):
     """Electromagnetic torque Te (N*m) of the state x."""
     return electromagnetic_torque(x[X_ID], x[X_IQ], p[P_NP], p[P_LD], p[P_LQ], p[P_PSI])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
     """Write dx/dt of the actuator into ``dx``.
 

@@ -20,12 +20,22 @@ import numba as nb
 
 from .element import FAR_RUNAWAY, Element, Quantity, State
 
+EXP_ZERO = 746.0  # exp(-x) rounds to exactly 0.0 for x > 745.14
+
 
 @nb.njit(cache=True, inline="always", error_model="numpy")
 def stribeck(v, fc, fs, vs):
-    """Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), the steady sliding friction level."""
+    """Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), the steady sliding friction level.
+
+    Far above the Stribeck speed the exponential is exactly 0.0 in double precision, and the
+    C library computes that underflow on a slow path that sets errno (15 % of the lumped
+    loop at 1000 rpm, in ``perf``); so beyond EXP_ZERO the curve returns Fc directly, the
+    same value bit for bit."""
     r = v / vs
-    return fc + (fs - fc) * math.exp(-r * r)
+    r2 = r * r
+    if r2 > EXP_ZERO:
+        return fc
+    return fc + (fs - fc) * math.exp(-r2)
 
 
 @nb.njit(cache=True, inline="always", error_model="numpy")

@@ -160,7 +160,7 @@ def _stage(xs, x, k, dt, z, n):
     xs[A.X_Z] = z
 
 
-@nb.njit(cache=True, error_model="numpy")
+@nb.njit(cache=True, inline="always", error_model="numpy")
 def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     """Advance x by one RK4 sub-step h with the voltages held; ``work`` is a
     :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
