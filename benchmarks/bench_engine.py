@@ -1,32 +1,92 @@
-"""Speed of the engine: real-time factors, start-up times, speed-up over the reference path.
+"""Speed of the engine: real-time factors, start-up, memory, batch scaling, reference speed-up.
 
-    python benchmarks/bench_engine.py [--quick] [--json FILE]
+    python benchmarks/bench_engine.py [--quick] [--write] [--json FILE]
 
 Real-time factor (RTF) = wall seconds of the simulation alone per simulated second (lower is
 faster; 0.05 means 20x faster than real time), best of three runs in this process with the
-compiled code loaded. Start-up: a fresh ``emasim run speed-step`` process end to end with a warm
-numba cache, and with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
+compiled code loaded. Start-up: fresh ``python -m emasim`` processes with a warm numba cache
+(the default cache is warmed first by one ``emasim run speed-step``), each the median of five:
+``--help``, ``list``, an input error (``run speed-step --set duration_ms=2``, which must exit
+with code 2) and one run (``run speed-step -c speed=pi``, plots included); and a fresh
+``emasim run speed-step`` (every controller) best of three with a warm cache, and one with an
+empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
 Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
 Reproduce: a fresh ``emasim reproduce`` process, every paper experiment and the report.
+Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasim and loaded
+the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
+after each, with the bytes of the kept trace (``Result.data``) and peak / trace; 1000 s runs in
+a process of its own (MEMORY_S). Batch: BATCH_RUNS independent runs of speed-step with the PI
+speed loop (seed and backlash width differ per run), BATCH_S each, through ``run_all`` on
+Dask's threads, with one worker and with two, interleaved, median of three each; speed-up =
+1 worker / 2 workers.
+FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``.
+
+``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
+count and the Python, numpy and numba versions) and rewrites the README's speed table from it
+(``readme_figures.py``); ``--json FILE`` writes the same figures to FILE only.
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
-simulated time, one run each, the reference path on QUICK_REFERENCE_S, and no fresh processes.
+simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
+and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
+QUICK_BATCH_RUNS runs of QUICK_S; no ``list``, single or cold runs, reproduce or FMU. Its
+results are marked ``"quick": true`` and the README's table says so.
 """
 
 import argparse
+import datetime
 import json
 import os
+import platform
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
+
+import dask
+import numba
+import numpy as np
+from readme_figures import RESULTS, write_readme
 
 from emasim.control.registry import CONTROLLERS
+from emasim.experiments.batch import run_all
 from emasim.scenarios.loader import builtin_scenarios, load_scenario
 from emasim.sim.engine import simulate
 from emasim.sim.reference import simulate_reference
 
 QUICK_S = 0.05
 QUICK_REFERENCE_S = 0.005
+MEMORY_S = (100.0, 1000.0)
+QUICK_MEMORY_S = 1.0
+BASELINE_S = 1e-3
+BATCH_RUNS, BATCH_S = 8, 1.0
+QUICK_BATCH_RUNS = 2
+
+# Fresh processes timed for start-up: key -> (arguments after ``python -m emasim``, exit code).
+# ``{out}`` is a new folder for each process.
+STARTUP = {
+    "help": (["--help"], 0),
+    "list": (["list"], 0),
+    "input_error": (["run", "speed-step", "--set", "duration_ms=2"], 2),
+    "run_speed_step_pi": (["run", "speed-step", "-c", "speed=pi", "--out", "{out}/run"], 0),
+}
+QUICK_STARTUP = ("help", "input_error")
+
+# Run in a fresh process: simulate speed-sine for each duration in argv, in turn, and print the
+# peak RSS so far (ru_maxrss: kB on Linux, bytes on macOS) and the kept trace's bytes after each.
+MEMORY_CHILD = """
+import json, resource, sys
+from emasim.scenarios.loader import load_scenario
+from emasim.sim.engine import simulate
+setup = load_scenario("speed-sine").setup()
+unit = 1 if sys.platform == "darwin" else 1024
+for text in sys.argv[1:]:
+    result = simulate(setup.with_(duration_s=float(text)))
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
+    print(json.dumps({"duration_s": float(text), "peak_rss_bytes": peak,
+                      "trace_bytes": int(result.data.nbytes)}))
+    del result
+"""
 
 
 def best_of(n, fn):
@@ -54,6 +114,16 @@ def real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
     }
 
 
+def scenario_runs(duration_s: float | None = None) -> tuple[dict, dict]:
+    """What ``real_time_factors`` timed: the simulated seconds and the controllers of each."""
+    scenarios = {name: load_scenario(name) for name in sorted(builtin_scenarios())}
+    durations = {
+        name: duration_s if duration_s is not None else s.duration_s
+        for name, s in scenarios.items()
+    }
+    return durations, {name: s.controllers_label() for name, s in scenarios.items()}
+
+
 def controller_real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
     """RTF of every controller, each on the experiment of its loop (speed-step, position-step)."""
     out = {}
@@ -64,15 +134,33 @@ def controller_real_time_factors(runs: int = 3, duration_s: float | None = None)
     return out
 
 
+def process_seconds(args: list[str], expect: int = 0, env: dict | None = None) -> float:
+    """Wall time of one fresh ``python -m emasim ARGS`` process, run in a new temporary folder
+    (``{out}`` in ARGS names it); raise unless it exits with ``expect``."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "emasim", *(a.format(out=out) for a in args)]
+        start = time.perf_counter()
+        proc = subprocess.run(cmd, env=env, cwd=out, capture_output=True, text=True)
+        elapsed = time.perf_counter() - start
+    if proc.returncode != expect:
+        raise RuntimeError(
+            f"{' '.join(args)}: exit code {proc.returncode}, expected {expect}\n{proc.stderr}"
+        )
+    return elapsed
+
+
+def startup_seconds(keys=tuple(STARTUP), runs: int = 5) -> dict:
+    """Median wall time of ``runs`` fresh processes of each STARTUP command (warm cache)."""
+    return {
+        key: statistics.median(process_seconds(*STARTUP[key]) for _ in range(runs)) for key in keys
+    }
+
+
 def fresh_process_seconds(cache_dir: str | None, *extra: str) -> float:
     env = dict(os.environ)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = cache_dir
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "emasim", "run", "speed-step", *extra, "--out", f"{out}/run"]
-        start = time.perf_counter()
-        subprocess.run(cmd, check=True, env=env, capture_output=True)
-        return time.perf_counter() - start
+    return process_seconds(["run", "speed-step", *extra, "--out", "{out}/run"], env=env)
 
 
 def reference_speedup(duration_s: float = 0.05) -> dict:
@@ -81,34 +169,114 @@ def reference_speedup(duration_s: float = 0.05) -> dict:
     start = time.perf_counter()
     simulate_reference(setup)
     reference = time.perf_counter() - start
-    return {"engine_s": engine, "reference_s": reference, "speedup": reference / engine}
+    return {
+        "duration_s": duration_s,
+        "engine_s": engine,
+        "reference_s": reference,
+        "speedup": reference / engine,
+    }
 
 
 def reproduce_seconds() -> float:
     """Wall time of a fresh ``emasim reproduce`` (warm numba cache), every experiment."""
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "emasim", "reproduce", "--out", f"{out}/report"]
+    return process_seconds(["reproduce", "--out", "{out}/report"])
+
+
+def peak_memory(*durations_s: float) -> list[dict]:
+    """Peak RSS of one fresh process after simulating each of ``durations_s`` of speed-sine in
+    turn, the kept trace's bytes and their ratio (MEMORY_CHILD)."""
+    cmd = [sys.executable, "-c", MEMORY_CHILD, *(repr(float(d)) for d in durations_s)]
+    proc = subprocess.run(cmd, check=True, capture_output=True, text=True)
+    runs = [json.loads(line) for line in proc.stdout.splitlines()]
+    for run in runs:
+        run["ratio"] = run["peak_rss_bytes"] / run["trace_bytes"]
+    return runs
+
+
+def memory_figures(durations_s) -> dict:
+    """The baseline (BASELINE_S: import and compiled code) and the first duration in one
+    process, every other duration in a process of its own."""
+    baseline, *runs = peak_memory(BASELINE_S, durations_s[0])
+    del baseline["ratio"]  # a 1 ms trace: the ratio says nothing
+    for duration in durations_s[1:]:
+        runs += peak_memory(duration)
+    return {"baseline": baseline, "runs": runs}
+
+
+def batch_scenarios(runs: int, duration_s: float) -> list:
+    """``runs`` speed-step scenarios with the PI speed loop; seed and backlash differ per run."""
+    return [
+        load_scenario(
+            "speed-step",
+            controllers=["speed=pi"],
+            settings=[
+                f"duration_s={duration_s}",
+                f"seed={k}",
+                f"plant.backlash.width_mm={0.1 + 0.01 * k:.2f}",
+            ],
+        )
+        for k in range(runs)
+    ]
+
+
+def batch_seconds(scenarios: list, workers: int) -> float:
+    with dask.config.set(num_workers=workers):
         start = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True)
+        run_all(scenarios, scheduler="threads")
         return time.perf_counter() - start
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--json", help="also write the figures to this file")
-    parser.add_argument("--quick", action="store_true", help="a few seconds (module docstring)")
-    args = parser.parse_args()
-    if args.quick:
-        results = {
-            "real_time_factor": real_time_factors(1, QUICK_S),
-            "controller_real_time_factor": controller_real_time_factors(1, QUICK_S),
-            "reference": reference_speedup(QUICK_REFERENCE_S),
-        }
-        report(results)
-        return
-    results = {"real_time_factor": real_time_factors()}
+def batch_scaling(runs: int, duration_s: float, repeats: int = 3) -> dict:
+    """Median wall time of ``run_all`` on 1 and on 2 worker threads, interleaved."""
+    scenarios = batch_scenarios(runs, duration_s)
+    batch_seconds(scenarios[:1], 1)  # load compiled code
+    times = {1: [], 2: []}
+    for _ in range(repeats):
+        for workers in times:
+            times[workers].append(batch_seconds(scenarios, workers))
+    one, two = statistics.median(times[1]), statistics.median(times[2])
+    return {
+        "runs": runs,
+        "duration_s": duration_s,
+        "one_worker_s": one,
+        "two_workers_s": two,
+        "speedup": one / two,
+    }
+
+
+def machine(quick: bool) -> dict:
+    return {
+        "quick": quick,
+        "date": datetime.date.today().isoformat(),
+        "platform": platform.platform(),
+        "cpu_count": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+    }
+
+
+def quick_results() -> dict:
+    results = machine(quick=True)
+    results["real_time_factor"] = real_time_factors(1, QUICK_S)
+    results["scenario_duration_s"], results["scenario_controllers"] = scenario_runs(QUICK_S)
+    results["controller_real_time_factor"] = controller_real_time_factors(1, QUICK_S)
+    results["reference"] = reference_speedup(QUICK_REFERENCE_S)
+    results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
+    results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
+    results["batch"] = batch_scaling(QUICK_BATCH_RUNS, QUICK_S)
+    return results
+
+
+def full_results() -> dict:
+    import bench_fmu  # the plant FMU: pythonfmu and fmpy, only for the full run
+
+    results = machine(quick=False)
+    results["real_time_factor"] = real_time_factors()
+    results["scenario_duration_s"], results["scenario_controllers"] = scenario_runs()
     results["controller_real_time_factor"] = controller_real_time_factors()
     fresh_process_seconds(None)  # make sure the default cache is warm
+    results["startup_s"] = startup_seconds()
     results["fresh_run_warm_cache_s"] = min(fresh_process_seconds(None) for _ in range(3))
     results["fresh_run_st_gpio_warm_cache_s"] = min(
         fresh_process_seconds(None, "--controller", "speed=st-gpio") for _ in range(3)
@@ -117,10 +285,31 @@ def main() -> None:
         results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
     results["reference"] = reference_speedup()
     results["reproduce_s"] = reproduce_seconds()
+    results["peak_memory"] = memory_figures(MEMORY_S)
+    results["batch"] = batch_scaling(BATCH_RUNS, BATCH_S)
+    results["fmu"] = bench_fmu.fmu_figures(5, 2000)
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a few seconds (module docstring)")
+    parser.add_argument(
+        "--write",
+        action="store_true",
+        help="store the figures in benchmarks/results.json and rewrite the README's speed table",
+    )
+    parser.add_argument("--json", help="also write the figures to this file")
+    args = parser.parse_args()
+    results = quick_results() if args.quick else full_results()
     report(results)
+    text = json.dumps(results, indent=2) + "\n"
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=2)
+        Path(args.json).write_text(text)
+    if args.write:
+        RESULTS.write_text(text)
+        write_readme(results)
+        print(f"wrote {RESULTS} and the README's speed table")
 
 
 def report(results: dict) -> None:
@@ -128,6 +317,8 @@ def report(results: dict) -> None:
         print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
     for name, rtf in results["controller_real_time_factor"].items():
         print(f"  {name:20s} RTF {rtf:.4f} s/s")
+    for key, seconds in results["startup_s"].items():
+        print(f"fresh `emasim {' '.join(STARTUP[key][0])}`, warm cache: {seconds:.2f} s")
     for key, what in (
         ("fresh_run_warm_cache_s", "fresh `emasim run speed-step`, warm cache"),
         ("fresh_run_st_gpio_warm_cache_s", "fresh `emasim run speed-step -c speed=st-gpio`, warm"),
@@ -141,6 +332,26 @@ def report(results: dict) -> None:
         f"engine vs scipy Radau reference: {ref['engine_s']:.4f} s vs "
         f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
     )
+    memory = results["peak_memory"]
+    print(f"peak RSS, import + 1 ms run: {memory['baseline']['peak_rss_bytes'] / 1e6:.0f} MB")
+    for run in memory["runs"]:
+        print(
+            f"peak RSS, {run['duration_s']:g} s of speed-sine: "
+            f"{run['peak_rss_bytes'] / 1e6:.0f} MB, kept trace {run['trace_bytes'] / 1e6:.1f} MB "
+            f"(ratio {run['ratio']:.2f})"
+        )
+    batch = results["batch"]
+    print(
+        f"batch of {batch['runs']} x {batch['duration_s']:g} s: 1 worker "
+        f"{batch['one_worker_s']:.2f} s, 2 workers {batch['two_workers_s']:.2f} s, "
+        f"speed-up {batch['speedup']:.2f}"
+    )
+    if "fmu" in results:
+        fmu = results["fmu"]
+        print(
+            f"plant FMU doStep {fmu['fmu_us']:.1f} us vs in process {fmu['in_process_us']:.1f} us"
+            f" ({fmu['ratio']:.2f}x)"
+        )
 
 
 if __name__ == "__main__":

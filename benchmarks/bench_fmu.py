@@ -5,7 +5,8 @@
 Builds the plant FMU (drive + linkage, pythonfmu), loads it with fmpy and steps it open loop
 (constant voltages) one control tick (1e-4 s, 10 RK4 sub-steps) at a time; then runs the same
 sub-steps in process. Reports microseconds per tick, the FMI layer's share and the ratio, best
-of five runs of 2000 ticks (``--quick``: one run of 100 ticks, for CI).
+of five runs of 2000 ticks (``--quick``: one run of 100 ticks, for CI). ``bench_engine.py``'s
+full run calls :func:`fmu_figures` and stores the figures in ``results.json`` for the README.
 """
 
 import argparse
@@ -42,19 +43,31 @@ def per_tick_in_process(plant, ticks: int) -> float:
     return (time.perf_counter() - start) / ticks
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="one run of 100 ticks")
-    quick = parser.parse_args().quick
-    runs, ticks = (1, 100) if quick else (5, 2000)
+def fmu_figures(runs: int, ticks: int) -> dict:
+    """Microseconds per tick through the FMU and in process, the FMI layer's share, the ratio."""
     plant = sea805_linkage()
     with tempfile.TemporaryDirectory() as folder:
         path = export_plant_fmu(f"{folder}/plant.fmu", plant)
         fmu = min(per_tick_fmu(path, ticks) for _ in range(runs))
     direct = min(per_tick_in_process(plant, ticks) for _ in range(runs))
-    print(f"plant FMU doStep (1 tick, 10 sub-steps): {1e6 * fmu:.1f} us")
-    print(f"same sub-steps in process:               {1e6 * direct:.1f} us")
-    print(f"FMI layer per step: {1e6 * (fmu - direct):.1f} us ({fmu / direct:.2f}x)")
+    return {
+        "fmu_us": 1e6 * fmu,
+        "in_process_us": 1e6 * direct,
+        "layer_us": 1e6 * (fmu - direct),
+        "ratio": fmu / direct,
+        "runs": runs,
+        "ticks": ticks,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one run of 100 ticks")
+    quick = parser.parse_args().quick
+    figures = fmu_figures(*((1, 100) if quick else (5, 2000)))
+    print(f"plant FMU doStep (1 tick, 10 sub-steps): {figures['fmu_us']:.1f} us")
+    print(f"same sub-steps in process:               {figures['in_process_us']:.1f} us")
+    print(f"FMI layer per step: {figures['layer_us']:.1f} us ({figures['ratio']:.2f}x)")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,223 @@
+"""The README's speed figures, rendered from ``benchmarks/results.json``: the one place they are
+worded and formatted.
+
+    python benchmarks/readme_figures.py      # rewrite the README's block from results.json
+
+``bench_engine.py --write`` measures, stores ``results.json`` and calls :func:`write_readme`.
+The README holds the figures between ``<!-- speed-figures:begin -->`` and
+``<!-- speed-figures:end -->`` and nowhere else; ``tests/test_speed_figures.py`` checks that the
+block equals :func:`render` of the stored results. Standard library only: the test loads this
+file by path and runs no simulation.
+
+Formats: RTF with 3 significant digits and the factor faster than real time (2 significant
+digits); seconds (milliseconds below 0.1 s) and microseconds with 2 significant digits; memory
+in MB (10^6 bytes) with 3 significant digits; ratios with 2 decimals. A figure missing from the
+results (a ``--quick`` run skips the long ones) is shown as "not measured".
+"""
+
+import json
+import math
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results.json"
+README = ROOT / "README.md"
+BEGIN = "<!-- speed-figures:begin -->"
+END = "<!-- speed-figures:end -->"
+MISSING = "not measured"
+
+RTF_HOW = "best of 3 runs in one process, compiled code loaded"
+STARTUP = (  # key in results["startup_s"], what the fresh process runs
+    ("help", "`emasim --help`"),
+    ("list", "`emasim list`"),
+    ("input_error", "`emasim run speed-step --set duration_ms=2` (an input error, exit 2)"),
+    ("run_speed_step_pi", "`emasim run speed-step -c speed=pi` (one run, plots included)"),
+)
+FRESH_RUNS = (  # top-level key, what, how
+    (
+        "fresh_run_warm_cache_s",
+        "`emasim run speed-step` (4 controllers), warm cache, plots included",
+        "best of 3 fresh processes",
+    ),
+    (
+        "fresh_run_st_gpio_warm_cache_s",
+        "`emasim run speed-step -c speed=st-gpio`, warm cache",
+        "best of 3 fresh processes",
+    ),
+    (
+        "fresh_run_cold_cache_s",
+        "the first run ever: `emasim run speed-step` on an empty numba cache (compiles everything)",
+        "one fresh process, new `NUMBA_CACHE_DIR`",
+    ),
+    (
+        "reproduce_s",
+        "`emasim reproduce`: every experiment and the report",
+        "one fresh process, warm cache",
+    ),
+)
+
+
+def sig(x: float, digits: int) -> str:
+    """``x`` with ``digits`` significant digits, in plain notation (870, 5.1, 0.0469)."""
+    if x == 0 or not math.isfinite(x):
+        return f"{x:g}"
+    decimals = digits - 1 - math.floor(math.log10(abs(x)))
+    rounded = round(x, decimals)
+    decimals = digits - 1 - math.floor(math.log10(abs(rounded)))  # 9.96 -> 10, not 10.0
+    return f"{rounded:.{max(decimals, 0)}f}"
+
+
+def seconds(x: float | None) -> str:
+    if x is None:
+        return MISSING
+    return f"{sig(1e3 * x, 2)} ms" if x < 0.1 else f"{sig(x, 2)} s"
+
+
+def given(x: float) -> str:
+    """A length the benchmark chose (not a measurement): as short as it is."""
+    return f"{x:g} s"
+
+
+def megabytes(n: float) -> str:
+    return f"{sig(n / 1e6, 3)} MB"
+
+
+def rtf(r: float) -> str:
+    return f"RTF {sig(r, 3)}, {sig(1 / r, 2)}× faster than real time"
+
+
+def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
+    rows = []
+    durations = results["scenario_duration_s"]
+    controllers = results["scenario_controllers"]
+    for name, r in results["real_time_factor"].items():
+        what = f"`{name}` ({controllers[name]}), {given(durations[name])} simulated"
+        rows.append((what, RTF_HOW, rtf(r)))
+    controllers = results["controller_real_time_factor"]
+    fastest = min(controllers, key=controllers.get)
+    slowest = max(controllers, key=controllers.get)
+    rows.append(
+        (
+            "each speed controller on `speed-step`, each position controller on `position-step`",
+            RTF_HOW,
+            f"RTF {sig(controllers[fastest], 3)} (`{fastest}`) to "
+            f"{sig(controllers[slowest], 3)} (`{slowest}`)",
+        )
+    )
+    ref = results["reference"]
+    rows.append(
+        (
+            f"engine against the scipy Radau reference (rtol 1e-10), "
+            f"{given(ref['duration_s'])} of `speed-step`",
+            "engine best of 3, reference one run, in one process",
+            f"{sig(ref['speedup'], 2)}× faster ({seconds(ref['engine_s'])} against "
+            f"{seconds(ref['reference_s'])})",
+        )
+    )
+    return rows
+
+
+def process_rows(results: dict) -> list[tuple[str, str, str]]:
+    startup = results.get("startup_s", {})
+    rows = [
+        (f"{what}, warm cache", "median of 5 fresh processes", seconds(startup.get(key)))
+        for key, what in STARTUP
+    ]
+    rows += [(what, how, seconds(results.get(key))) for key, what, how in FRESH_RUNS]
+    batch = results.get("batch")
+    if batch is not None:
+        rows.append(
+            (
+                f"{batch['runs']} independent runs of `speed-step -c speed=pi` "
+                f"({given(batch['duration_s'])} each, seeds and backlash differ) through "
+                "`run_all`, Dask threads, 1 worker against 2",
+                "median of 3 each, interleaved, in one process",
+                f"{seconds(batch['one_worker_s'])} against {seconds(batch['two_workers_s'])}: "
+                f"speed-up {batch['speedup']:.2f}",
+            )
+        )
+    return rows
+
+
+def memory_rows(results: dict) -> list[tuple[str, str, str]]:
+    memory = results.get("peak_memory")
+    if memory is None:
+        return []
+    how = "peak RSS (`ru_maxrss`) of a fresh process"
+    base = memory["baseline"]
+    rows = [
+        (
+            f"import emasim and load the compiled code (a {1e3 * base['duration_s']:g} ms run of "
+            "`speed-sine`)",
+            how,
+            megabytes(base["peak_rss_bytes"]),
+        )
+    ]
+    for run in memory["runs"]:
+        rows.append(
+            (
+                f"simulate {given(run['duration_s'])} of `speed-sine`, keeping its trace",
+                how,
+                f"{megabytes(run['peak_rss_bytes'])} for a trace of "
+                f"{megabytes(run['trace_bytes'])} ({run['ratio']:.2f}× the trace)",
+            )
+        )
+    return rows
+
+
+def fmu_rows(results: dict) -> list[tuple[str, str, str]]:
+    fmu = results.get("fmu")
+    what = "plant FMU `doStep` (one tick, 10 sub-steps) against the same sub-steps in process"
+    how = "best of 5 runs of 2000 ticks (`bench_fmu.py`)"
+    if fmu is None:
+        return [(what, how, MISSING)]
+    figure = (
+        f"{sig(fmu['fmu_us'], 2)} µs against {sig(fmu['in_process_us'], 2)} µs "
+        f"(+{sig(fmu['layer_us'], 2)} µs, {fmu['ratio']:.2f}×)"
+    )
+    return [(what, how, figure)]
+
+
+def render(results: dict) -> str:
+    """The Markdown between the README's markers (ends with a newline)."""
+    lines = []
+    if results.get("quick"):
+        lines += [
+            "**Quick run (`--quick`): short runs, mostly measured once, and the long figures "
+            "not measured. These are not the project's figures: "
+            "`python benchmarks/bench_engine.py --write` measures them.**",
+            "",
+        ]
+    lines += [
+        f"Measured on {results['date']}: {results['platform']}, {results['cpu_count']} CPUs, "
+        f"Python {results['python']}, numpy {results['numpy']}, numba {results['numba']}.",
+        "",
+        "| what | how | measured |",
+        "|---|---|---|",
+    ]
+    rows = rtf_rows(results) + process_rows(results) + memory_rows(results) + fmu_rows(results)
+    lines += [f"| {what} | {how} | {figure} |" for what, how, figure in rows]
+    return "\n".join(lines) + "\n"
+
+
+def block_of(text: str) -> str:
+    """The text between the markers (their own lines excluded)."""
+    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
+    return text[start : text.index(END, start)]
+
+
+def replace_block(text: str, block: str) -> str:
+    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
+    return text[:start] + block + text[text.index(END, start) :]
+
+
+def write_readme(results: dict, path: Path = README) -> None:
+    path.write_text(replace_block(path.read_text(), render(results)))
+
+
+def main() -> None:
+    write_readme(json.loads(RESULTS.read_text()))
+
+
+if __name__ == "__main__":
+    main()
