@@ -12,7 +12,7 @@ from pathlib import Path
 import emasim
 
 PACKAGE = Path(emasim.__file__).parent
-BASE = {"config", "errors", "interface", "numerics", "signals", "output", "numba_cache"}
+BASE = {"config", "errors", "interface", "jit", "numerics", "signals", "output", "numba_cache"}
 ALLOWED = {
     "plant": BASE,
     "control": BASE,

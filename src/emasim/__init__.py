@@ -7,13 +7,26 @@ compiled sampled-data engine (:mod:`emasim.sim`), the paper's experiments
 (:mod:`emasim.scenarios`) and the metrics (:mod:`emasim.analysis`).
 """
 
-from importlib.metadata import PackageNotFoundError, version
+import functools
 
 from .numba_cache import configure as _configure_numba_cache
 
 NUMBA_CACHE_DIR = _configure_numba_cache()  # keyed by the source: never stale (numba_cache.py)
 
-try:
-    __version__ = version("emasim")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
+
+@functools.cache
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("emasim")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        return "0.0.0+unknown"
+
+
+def __getattr__(name: str):
+    """``__version__``, read from the installed metadata when first asked for (importing
+    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario)."""
+    if name == "__version__":
+        return _version()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -185,14 +185,16 @@ def run(
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
-    from .experiments.batch import run_comparison
-    from .experiments.runs import run_scenario
     from .output import check_folder
     from .scenarios.loader import load_scenario
-    from .sim.cosim import check_fmu_trust
 
     try:
         sc = load_scenario(scenario, settings=setting or [], controllers=controller or [])
+        # the compiled core (numba) loads only for a valid scenario
+        from .experiments.batch import run_comparison
+        from .experiments.runs import run_scenario
+        from .sim.cosim import check_fmu_trust
+
         check_fmu_trust(sc, trust_fmu)
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time

@@ -16,7 +16,7 @@ from pydantic import Strict as StrictType
 RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 MM = 1e-3  # m per mm
 
-STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
+STRICT = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True, defer_build=True)
 
 
 class Strict(BaseModel):

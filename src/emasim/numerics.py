@@ -2,16 +2,16 @@
 
 import math
 
-import numba as nb
+from .jit import njit
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def clamp(value, lower, upper):
     """value limited to [lower, upper]."""
     return min(max(value, lower), upper)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def limit_magnitude(a, b, limit):
     """Scale the vector (a, b) down to length ``limit`` if it is longer; keep its direction."""
     mag = math.sqrt(a * a + b * b)
@@ -21,7 +21,7 @@ def limit_magnitude(a, b, limit):
     return a * scale, b * scale
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def sign(x):
     """sign(x) in {-1, 0, 1}."""
     if x > 0.0:
@@ -31,7 +31,7 @@ def sign(x):
     return 0.0
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def boundary_layer(s, width):
     """sat(s / width): the sign function smoothed linearly inside |s| < width (width 0: sign)."""
     if width <= 0.0:

@@ -13,11 +13,11 @@ Encoding: ``[n_terms, kind, n_params, params..., kind, n_params, params..., ...]
 import math
 from typing import Annotated, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .config import STRICT
+from .jit import njit
 
 KIND_CONSTANT = 0.0
 KIND_STEP = 1.0
@@ -149,12 +149,40 @@ def combine(*encoded: np.ndarray) -> np.ndarray:
 ZERO = encode([])  # the signal that is 0 at all times
 
 
+def signal_values(sig: np.ndarray, t) -> np.ndarray:
+    """y(t) of an encoded signal at every time of ``t``, with numpy: the terms of the compiled
+    :func:`signal_value` (tests/test_signals.py holds the two equal), for the checks of a
+    scenario and for plots, which must not wait for numba to load (emasim.jit)."""
+    t = np.asarray(t, dtype=np.float64)
+    y = np.zeros_like(t)
+    pos = 1
+    for _ in range(int(sig[0])):
+        kind, n = sig[pos], int(sig[pos + 1])
+        q = sig[pos + 2 : pos + 2 + n]
+        if kind == KIND_CONSTANT:
+            y += q[0]
+        elif kind == KIND_STEP:
+            y += np.where(t >= q[0], q[2], q[1])
+        elif kind == KIND_SINE:
+            amp, omega, phase, offset, start = q
+            arg = np.where(t < start, phase, omega * (t - start) + phase)
+            y += offset + amp * np.sin(arg)
+        elif kind == KIND_RAMP:
+            slope, start, end = q
+            y += slope * (np.clip(t, start, end) - start)
+        else:
+            m = n // 2
+            y += np.interp(t, q[:m], q[m:])
+        pos += 2 + n
+    return y
+
+
 # The compiled evaluators index the encoded array in place (no slices, no tuple-returning
 # helpers that stay out of line): signal_value runs three times per RK4 sub-step, and the
 # sliced form cost 70-90 ns a call against 4 ns (benchmarks/bench_engine.py, in one process).
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _table(sig, j, n, t):
     """(value, slope) of the table term whose n times and n values start at sig[j]."""
     if t <= sig[j]:
@@ -173,7 +201,7 @@ def _table(sig, j, n, t):
     return sig[j + n + i] + slope * (t - sig[j + i]), slope
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _term_value(kind, sig, j, n, t):
     """y(t) of the term of the given kind whose n parameters start at sig[j]."""
     if kind == KIND_CONSTANT:
@@ -195,7 +223,7 @@ def _term_value(kind, sig, j, n, t):
     return _table(sig, j, n // 2, t)[0]
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _term_derivatives(kind, sig, j, n, t):
     """(y, dy/dt, d2y/dt2) of the term of the given kind whose n parameters start at sig[j]."""
     y = _term_value(kind, sig, j, n, t)
@@ -212,7 +240,7 @@ def _term_derivatives(kind, sig, j, n, t):
     return y, 0.0, 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def signal_derivatives(sig, t):
     """(y, dy/dt, d2y/dt2) of an encoded signal at time t (impulses of steps are not counted)."""
     y = 0.0
@@ -229,7 +257,7 @@ def signal_derivatives(sig, t):
     return y, dy, ddy
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def signal_value(sig, t):
     """y(t) of an encoded signal."""
     y = 0.0

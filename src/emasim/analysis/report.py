@@ -27,7 +27,7 @@ import math
 import numpy as np
 from pydantic import TypeAdapter
 
-from ..signals import Term, encode, signal_value
+from ..signals import Term, encode, signal_values
 from . import metrics as m
 
 RPM_PER_RAD_S = 30.0 / math.pi
@@ -88,7 +88,7 @@ def rudder_traces(result) -> tuple[np.ndarray, ...]:
             for term in result.scenario["reference"]["rudder_deg"]
         ]
     )
-    reference = np.array([signal_value(command, float(x)) for x in t])
+    reference = signal_values(command, t)
     angle = DEG_PER_RAD * result["rudder_angle_rad"]
     if result.scenario["plant"].get("linkage"):
         rate = DEG_PER_RAD * result["linkage_rudder_rate_rad_s"]

@@ -13,12 +13,12 @@ every speed and position controller.
 
 import math
 
-import numba as nb
 import numpy as np
 from pydantic import BaseModel, Field
 
 from ..config import STRICT
 from ..interface import M_ID, M_IQ, M_SPEED, O_UD, O_UQ, R_VALUE
+from ..jit import njit
 from ..numerics import limit_magnitude
 from .slot import Compiled, PlantFacts, controller_law
 
@@ -28,7 +28,7 @@ I_D, I_Q = range(2)
 N_STATE = 2
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def current_control(state, params, i_d, i_q, w_m, id_ref, iq_ref, ts):
     """One sample of the current loop; returns the realised (ud, uq) in V."""
     w_e = params[NP] * w_m

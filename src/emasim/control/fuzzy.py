@@ -21,11 +21,11 @@ Kp0 and Ki0 come from a bandwidth as for the position PI (pid.py).
 import math
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R_VALUE
+from ..jit import njit
 from ..numerics import clamp
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
@@ -85,7 +85,7 @@ def mamdani_surface(rules: np.ndarray, grid: int = GRID) -> np.ndarray:
     return (aggregate @ universe) / aggregate.sum(axis=-1)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _bilinear(table, x, y):
     """Bilinear interpolation of a square table over [-1, 1]^2 at (x, y)."""
     n = table.shape[0]

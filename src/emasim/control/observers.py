@@ -28,9 +28,9 @@ continuous 2a/wo made larger by a relative wo Ts / 4 + O((wo Ts)^2).
 
 import math
 
-import numba as nb
 import numpy as np
-from scipy.linalg import expm
+
+from ..jit import njit
 
 
 def observer_gains(order: int, bandwidth_rad_s: float) -> np.ndarray:
@@ -42,6 +42,8 @@ def observer_gains(order: int, bandwidth_rad_s: float) -> np.ndarray:
 
 def sampled_plant(order: int, b: float, ts: float) -> tuple[np.ndarray, np.ndarray]:
     """(Phi, Gamma) of x = [w, d, dd/dt, ...] (order states), sampled exactly with u held."""
+    from scipy.linalg import expm  # here: checking a scenario needs no scipy
+
     block = np.zeros((order + 1, order + 1))
     block[: order - 1, 1:order] = np.eye(order - 1)  # w' = d + b u, d' = d1, ...
     block[0, order] = b
@@ -70,7 +72,7 @@ def discrete_observer(order: int, bandwidth_rad_s: float, b: float, ts: float) -
     return np.concatenate([phi.ravel(), gamma, gain])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def observer_step(z, packed, u, w):
     """z <- Phi z + Gamma u + L (w - z1) in place; packed as built by discrete_observer."""
     n = z.size

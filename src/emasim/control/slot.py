@@ -14,26 +14,46 @@ Every library controller is compiled with exactly :data:`CONTROLLER_SIG` and ``c
 first-class function value
 (:data:`CONTROLLER_TYPE`), so changing the controller never recompiles the loop. A user's own
 ``@numba.njit(CONTROLLER_SIG)`` function plugs in the same way.
+
+``CONTROLLER_SIG`` and ``CONTROLLER_TYPE`` are numba types, made when first asked for: the
+configs of this package are checked without importing numba (emasim.jit).
 """
 
+import functools
 import math
 from abc import abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
-from numba import types
 from pydantic import BaseModel, ConfigDict
 
 from ..config import STRICT
-
-F8_ARRAY = types.float64[::1]
-CONTROLLER_SIG = types.void(F8_ARRAY, F8_ARRAY, F8_ARRAY, F8_ARRAY, types.float64, F8_ARRAY)
-CONTROLLER_TYPE = types.FunctionType(CONTROLLER_SIG)
+from ..jit import njit
 
 Loop = Literal["speed", "position"]
+
+
+@functools.cache
+def controller_signature():
+    """CONTROLLER_SIG: void(state, params, meas, ref, ts, out), float64[::1] arrays and a
+    float64 ts (the module docstring)."""
+    from numba import types
+
+    array = types.float64[::1]
+    return types.void(array, array, array, array, types.float64, array)
+
+
+def __getattr__(name: str):
+    """CONTROLLER_SIG and CONTROLLER_TYPE (its first-class function type), made on first use."""
+    if name == "CONTROLLER_SIG":
+        return controller_signature()
+    if name == "CONTROLLER_TYPE":
+        from numba import types
+
+        return types.FunctionType(controller_signature())
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -75,49 +95,15 @@ class Compiled:
     def __post_init__(self):
         # a law decorated with controller_law is compiled here, on first use (from the disk
         # cache when warm), so that importing the library does not load every controller
-        if CONTROLLER_SIG.args not in self.function.overloads:
-            self.function.compile(CONTROLLER_SIG)
-
-    @property
-    def law(self) -> "LawAddress":
-        """The law as the engine takes it: its machine-code address, looked up once."""
-        return LawAddress.of(self.function)
-
-
-class LawAddress(types.WrapperAddressProtocol):
-    """A compiled law's address, for numba's first-class function arguments.
-
-    Handed a dispatcher, numba looks its address up in the LLVM library at every call of the
-    compiled loop (two symbol look-ups per law); handed this, it reads the cached integer.
-    Measured: 91 against 278 us per call of run_ticks with three laws (emasim.sim.core). One
-    instance per law function, shared.
-    """
-
-    _cache: ClassVar[dict] = {}
-
-    def __init__(self, function: Callable):
-        from numba.experimental.function_type import _get_wrapper_address
-
-        self.function = function
-        self.address = _get_wrapper_address(function, CONTROLLER_SIG)
-
-    @classmethod
-    def of(cls, function: Callable) -> "LawAddress":
-        if function not in cls._cache:
-            cls._cache[function] = cls(function)
-        return cls._cache[function]
-
-    def __wrapper_address__(self) -> int:
-        return self.address
-
-    def signature(self):
-        return CONTROLLER_SIG
+        signature = controller_signature()
+        if signature.args not in self.function.overloads:
+            self.function.compile(signature)
 
 
 def controller_law(function: Callable) -> Callable:
     """Decorator of library controller laws: numba-compiled with the engine's conventions
     (``cache=True``, numpy error model), compiled to :data:`CONTROLLER_SIG` when first used."""
-    return nb.njit(cache=True, error_model="numpy")(function)
+    return njit(cache=True, error_model="numpy")(function)
 
 
 class ControllerConfig(BaseModel):

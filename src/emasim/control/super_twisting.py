@@ -25,11 +25,11 @@ import math
 import warnings
 from typing import ClassVar, Literal
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..interface import M_SPEED, O_RATE, O_VALUE, R_RATE, R_VALUE
+from ..jit import njit
 from ..numerics import clamp, sign
 from .observers import discrete_observer, observer_step
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
@@ -39,12 +39,12 @@ U1, STARTED, Z = range(3)  # Z: first of the 3 GPIO states
 GPIO_ORDER = 3
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _sat1(x, mu, alpha):
     return sign(x) if abs(x) >= mu else x / mu**alpha
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _sat2(x, mu, alpha):
     return sign(x) if abs(x) >= mu else x * abs(x) / mu ** (2.0 * alpha)
 

@@ -3,8 +3,7 @@
 import dataclasses
 import datetime
 import platform
-
-import numba
+from importlib.metadata import version
 
 from .. import __version__
 from ..analysis.report import run_metrics, undefined_metrics
@@ -21,7 +20,7 @@ def meta_of(scenario, wall_s: float) -> dict:
         "scenario": scenario.name,
         "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "python": platform.python_version(),
-        "numba": numba.__version__,
+        "numba": version("numba"),
         "simulation_wall_s": wall_s,
         "real_time_factor": wall_s / scenario.duration_s,
     }

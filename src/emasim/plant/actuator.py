@@ -23,9 +23,9 @@ up by name in the elements' declarations (emasim.plant.element): the layouts are
 :data:`ELEMENTS`, never kept by hand.
 """
 
-import numba as nb
 import numpy as np
 
+from ..jit import njit
 from . import friction as fr
 from . import linkage as L
 from .backlash import BACKLASH, dead_zone_force
@@ -129,7 +129,7 @@ FRICTION_COULOMB = 1
 FRICTION_LUGRE = 2
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def friction(w, z, p):
     """Friction torque on the motor shaft (N*m) and bristle rate dz/dt (rad/s).
 
@@ -145,7 +145,7 @@ def friction(w, z, p):
     return 0.0, 0.0
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def bristle_step(z0, w, h, p):
     """Exact bristle update over h with the speed w held (see friction.bristle_update)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -153,7 +153,7 @@ def bristle_step(z0, w, h, p):
     return fr.bristle_update(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, w, h, p):
     """Exact bristle states after h/2 and h with the speed w held (LuGre only)."""
     if int(p[P_FRICTION]) != FRICTION_LUGRE:
@@ -161,7 +161,7 @@ def bristle_half_and_full_step(z0, w, h, p):
     return fr.bristle_half_and_full_step(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def backlash_force(x, p):
     """Contact force Fb across the backlash gap (N), positive when the screw pushes forward:
     on the rod, or on the compliance's node when the plant has one."""
@@ -175,7 +175,7 @@ def backlash_force(x, p):
     )
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def compliance_force(x, p):
     """The series spring-damper's force on the rod (N); NaN without the element."""
     if p[P_COMPLIANCE] == 0.0:
@@ -183,7 +183,7 @@ def compliance_force(x, p):
     return spring_force(x[X_XN], x[X_VN], x[X_XL], x[X_VL], p[P_KS], p[P_CS])
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def drivetrain_force(x, p):
     """The force the drive train puts on the rod (N): what a load cell on the rod reads (the
     spring's with the compliance, the gap's without)."""
@@ -192,13 +192,13 @@ def drivetrain_force(x, p):
     return backlash_force(x, p)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def motor_torque(x, p):
     """Electromagnetic torque Te (N*m) of the state x."""
     return electromagnetic_torque(x[X_ID], x[X_IQ], p[P_NP], p[P_LD], p[P_LQ], p[P_PSI])
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
     """Write dx/dt of the actuator into ``dx``.
 
@@ -244,7 +244,7 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
         dx[X_VL] = (f_rod - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def active_states(p):
     """How many states move: the drive's X_LINK in a plant with neither the linkage nor the
     compliance, else all (an absent element's states then stay as they are: rhs sets their
@@ -254,7 +254,7 @@ def active_states(p):
     return X_LINK
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def rudder_angle(x, p):
     """Rudder angle (rad): the linkage's rocker arm, or rod position / arm of the lumped stage."""
     if p[P_LOAD_MODEL] == LOAD_LINKAGE:
@@ -273,7 +273,7 @@ N_OUTPUTS = len(PLANT.outputs)
 N_LINKAGE_OUTPUTS = len(L.LINKAGE.outputs)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def linkage_outputs(x, p, out):
     """Rod force and hinge normal forces and penetrations (linkage.LINKAGE.outputs) of state x;
     NaN with the lumped rudder stage."""
@@ -289,7 +289,7 @@ def linkage_outputs(x, p, out):
         out[1 + L.N_HINGES + h] = hinges[h, 0]
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def plant_outputs(x, p, out):
     """Write every element output of state x (layout PLANT.outputs) into ``out``."""
     out[O_TORQUE] = motor_torque(x, p)

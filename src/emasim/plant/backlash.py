@@ -19,12 +19,11 @@ Play operator (position form), for a position read through a gap of half-width b
 (the paper's eq. 17, read cleanly; l is a gain, 1 by default).
 """
 
-import numba as nb
-
+from ..jit import njit
 from .element import Element, Quantity
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def dead_zone_force(dx, dv, half_gap, stiffness, damping):
     """Contact force of a backlash element (N or N*m), positive when dx > half_gap.
 
@@ -41,7 +40,7 @@ def dead_zone_force(dx, dv, half_gap, stiffness, damping):
     return 0.0
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def play_operator(x, y_prev, half_gap, gain):
     """Output of the play operator for input x, previous output y_prev (see module docstring)."""
     lx = gain * x

@@ -18,10 +18,10 @@ the eigenfrequencies of the three-mass chain for any m_n; under a steady force F
 spring deflects F/k.
 """
 
-import numba as nb
 from pydantic import Field
 
 from ..config import Strict
+from ..jit import njit
 from .element import Element, Quantity, State, rod_position_bound, rod_velocity_bound
 
 COMPLIANCE = Element(
@@ -54,7 +54,7 @@ COMPLIANCE = Element(
 )
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def spring_force(x_node, v_node, x_rod, v_rod, stiffness, damping):
     """F_spring = k (x_n - x_L) + c (v_n - v_L) (N), positive pushing the rod forward."""
     return stiffness * (x_node - x_rod) + damping * (v_node - v_rod)

@@ -20,18 +20,18 @@ Units: SI inside (m, m/s, N). Table 1 gives K in N/mm^e, so K_SI = K_mm * 1000^e
 for the paper's 1e5 N/mm^2.2 and e = 2.2), C in N s/mm (x1000), d and speeds in mm (/1000).
 """
 
-import numba as nb
 import numpy as np
 from pydantic import Field, model_validator
 
 from ..config import MM, Strict
+from ..jit import njit
 
 # packed contact parameters (SI)
 C_K, C_E, C_DAMP, C_DEPTH, C_MU_S, C_MU_D, C_VS, C_VD = range(8)
 N_CONTACT = 8
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def step(x, x0, h0, x1, h1):
     """ADAMS STEP: a cubic from (x0, h0) to (x1, h1) with zero slope at both ends."""
     if x <= x0:
@@ -42,7 +42,7 @@ def step(x, x0, h0, x1, h1):
     return h0 + (h1 - h0) * a * a * (3.0 - 2.0 * a)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def normal_force(delta, delta_dot, c):
     """IMPACT normal force (N) for penetration delta (m) and its rate (m/s); 0 when apart."""
     if delta <= 0.0:
@@ -51,7 +51,7 @@ def normal_force(delta, delta_dot, c):
     return max(0.0, c[C_K] * delta ** c[C_E] + damping * delta_dot)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def friction_coefficient(v, c):
     """ADAMS friction coefficient mu(v) for slip speed v (m/s): odd, continuous, |mu| <= mu_s."""
     vs, vd, mu_s, mu_d = c[C_VS], c[C_VD], c[C_MU_S], c[C_MU_D]

@@ -13,8 +13,7 @@ when contact opens or closes.
 
 import math
 
-import numba as nb
-
+from ..jit import njit
 from .element import Element, Quantity
 
 
@@ -23,7 +22,7 @@ def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
     return lead_m / (2.0 * math.pi * gear_ratio)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def reflected_torque(force, motor_speed, ratio_k, efficiency):
     """Torque (N*m) that a nut force (N) puts on the motor shaft through gearbox and screw."""
     torque = ratio_k * force

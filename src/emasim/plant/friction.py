@@ -16,14 +16,13 @@ step h the bristle equation is linear in z and has the exact solution used by
 
 import math
 
-import numba as nb
-
+from ..jit import njit
 from .element import FAR_RUNAWAY, Element, Quantity, State
 
 EXP_ZERO = 746.0  # exp(-x) rounds to exactly 0.0 for x > 745.14
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def stribeck(v, fc, fs, vs):
     """Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), the steady sliding friction level.
 
@@ -38,20 +37,20 @@ def stribeck(v, fc, fs, vs):
     return fc + (fs - fc) * math.exp(-r2)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def bristle_rate(z, v, fc, fs, vs, sigma0):
     """LuGre bristle rate dz/dt = v - sigma0 |v| z / g(v)."""
     return v - sigma0 * abs(v) * z / stribeck(v, fc, fs, vs)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def lugre_force(z, v, fc, fs, vs, sigma0, sigma1, sigma2):
     """LuGre friction force Ff = sigma0 z + sigma1 dz/dt + sigma2 v, returned with dz/dt."""
     z_rate = bristle_rate(z, v, fc, fs, vs, sigma0)
     return sigma0 * z + sigma1 * z_rate + sigma2 * v, z_rate
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def bristle_update(z0, v, h, fc, fs, vs, sigma0):
     """Bristle state after a step h with the velocity v held constant (exact solution).
 
@@ -69,7 +68,7 @@ def bristle_update(z0, v, h, fc, fs, vs, sigma0):
     return z_ss + (z0 - z_ss) * math.exp(-a * h)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, v, h, fc, fs, vs, sigma0):
     """Exact bristle state after h/2 and after h with v held: (z(h/2), z(h)), one exp."""
     a = sigma0 * abs(v) / stribeck(v, fc, fs, vs)
@@ -81,7 +80,7 @@ def bristle_half_and_full_step(z0, v, h, fc, fs, vs, sigma0):
     return z_half, z_ss + (z0 - z_ss) * decay * decay
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def coulomb_viscous_force(v, fc, v_smooth, sigma2):
     """Static map Ff = Fc tanh(v / v_smooth) + sigma2 v.
 

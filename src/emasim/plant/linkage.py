@@ -34,11 +34,11 @@ All numbers are parameters (presets.py holds our reference geometry).
 
 import math
 
-import numba as nb
 import numpy as np
 from pydantic import Field
 
 from ..config import MM, Strict, numbers
+from ..jit import njit
 from . import contact
 from .element import Element, Quantity, State
 
@@ -161,7 +161,7 @@ N_HINGES = 4
 H1, H2, H3, H4 = range(4)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _local_point(hinge, on_pin, q):
     """Body-frame coordinates of a hinge's pin (on_pin) or hole on its body."""
     if hinge == H1:
@@ -173,7 +173,7 @@ def _local_point(hinge, on_pin, q):
     return (0.0, 0.5 * q[LC]) if on_pin else (q[R4], 0.0)  # H4 pin: C; hole: D
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _hinge_bodies(hinge):
     """(pin body, hole body) of a hinge."""
     if hinge == H1:
@@ -189,7 +189,7 @@ def _hinge_bodies(hinge):
 F_RX, F_RY, F_VX, F_VY, F_COS, F_SIN, F_OMEGA = range(7)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _frames(y, s, s_dot, q):
     """Frame of every body, one tuple each: reference point, its velocity, cos and sin of the
     orientation, angular rate. The rod's frame sits at the rod end, turning with phi; the
@@ -217,7 +217,7 @@ def _frames(y, s, s_dot, q):
     )
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _point(f, body, lx, ly):
     """World position of a body-fixed point (local lx, ly)."""
     frame = f[body]
@@ -225,7 +225,7 @@ def _point(f, body, lx, ly):
     return frame[F_RX] + c * lx - s * ly, frame[F_RY] + s * lx + c * ly
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _velocity_at(f, body, px, py):
     """Velocity of the material point of ``body`` that is at (px, py)."""
     frame = f[body]
@@ -233,7 +233,7 @@ def _velocity_at(f, body, px, py):
     return frame[F_VX] - w * (py - frame[F_RY]), frame[F_VY] + w * (px - frame[F_RX])
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _contact(hinge, f, q):
     """Contact of one hinge from the body frames (see hinge_contact)."""
     pin_body, hole_body = _hinge_bodies(hinge)
@@ -257,7 +257,7 @@ def _contact(hinge, f, q):
     return -fn * nx - ft * ny, -fn * ny + ft * nx, px, py, delta, fn
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def hinge_contact(hinge, y, s, s_dot, q):
     """Contact of one hinge: (Fx, Fy) on the pin body at (px, py), penetration (m), |Fn| (N).
 
@@ -266,7 +266,7 @@ def hinge_contact(hinge, y, s, s_dot, q):
     return _contact(hinge, _frames(y, s, s_dot, q), q)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _apply(body, fx, fy, px, py, f, q, gen):
     """Add a force at a point to the generalised forces of a body; return its push along the
     rod axis (N), which only the rod feels.
@@ -293,7 +293,7 @@ def _apply(body, fx, fy, px, py, f, q, gen):
     return 0.0
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     """Write dy/dt of the linkage; return the axial force of the linkage on the rod (N).
 

@@ -14,14 +14,13 @@ voltage vector, limited in magnitude to the largest sine a space-vector modulato
 
 import math
 
-import numba as nb
-
 from ..config import MM, RPM
+from ..jit import njit
 from ..numerics import limit_magnitude
 from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f):
     """Return (did/dt, diq/dt) in A/s from the dq voltage equations."""
     did = (u_d - rs * i_d + w_e * lq * i_q) / ld
@@ -29,13 +28,13 @@ def current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f):
     return did, diq
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def electromagnetic_torque(i_d, i_q, pole_pairs, ld, lq, psi_f):
     """Te = 1.5 np (psi_f iq + (Ld - Lq) id iq) in N*m."""
     return 1.5 * pole_pairs * (psi_f * i_q + (ld - lq) * i_d * i_q)
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def limit_voltage(u_d, u_q, u_dc):
     """Scale (ud, uq) so that |u| <= Udc/sqrt(3), keeping its direction (averaged SVPWM)."""
     return limit_magnitude(u_d, u_q, u_dc / math.sqrt(3.0))

@@ -10,7 +10,6 @@ zero-order hold come from the tick itself. Noise draws come from numba's generat
 per run, so a run is reproducible from its seed.
 """
 
-import numba as nb
 import numpy as np
 
 from ..interface import (
@@ -24,6 +23,7 @@ from ..interface import (
     M_VELOCITY,
     N_MEAS,
 )
+from ..jit import njit
 from . import actuator as A
 from .backlash import play_operator
 
@@ -34,7 +34,7 @@ S_OFFSET = 2
 S_HALF_GAP = 3
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def true_values(x, p, values):
     """Write the noiseless value of every measurement channel of state x into ``values``."""
     values[M_SPEED] = x[A.X_WM]
@@ -47,13 +47,13 @@ def true_values(x, p, values):
     values[M_RUDDER] = A.rudder_angle(x, p)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def seed_noise(seed):
     """Seed the generator of compiled code (numba keeps its own, apart from numpy's)."""
     np.random.seed(seed)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def read_sensor(value, resolution, noise_std, offset):
     """One sample of a sensor: offset, Gaussian noise, then quantisation."""
     y = value + offset
@@ -64,7 +64,7 @@ def read_sensor(value, resolution, noise_std, offset):
     return y
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def measure(x, p, table, gap_state, meas):
     """Fill ``meas`` with every channel's reading; ``gap_state`` holds each play operator's output.
 

@@ -9,6 +9,7 @@ of a :class:`emasim.sim.setup.Setup`.
 """
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydantic import Field, model_validator
@@ -21,8 +22,10 @@ from ..plant import actuator as A
 from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..signals import ZERO, Table, Term, combine, encode, signal_value
-from ..sim.setup import Setup, plant_facts
+from ..signals import ZERO, Table, Term, combine, encode, signal_value, signal_values
+
+if TYPE_CHECKING:
+    from ..sim.setup import Setup
 
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
@@ -331,8 +334,11 @@ class Scenario(Strict):
         ]
         return ", ".join(parts)
 
-    def setup(self) -> Setup:
-        """Compile this scenario into the arrays the engine runs."""
+    def setup(self) -> "Setup":
+        """Compile this scenario into the arrays the engine runs (the first call loads the
+        compiled core: checking a scenario does not)."""
+        from ..sim.setup import Setup, plant_facts
+
         facts = plant_facts(self.plant)
         ts = self.solver.sample_period_s
         motor_load, rod_load, rudder_load = self.load.encode(self.plant)
@@ -367,7 +373,7 @@ def signal_peak(terms: list, duration_s: float) -> float:
         times.append(np.atleast_1d(getattr(term, "time_s", [])))
     grid = np.concatenate(times)
     grid = grid[(grid >= 0.0) & (grid <= duration_s)]
-    return max(abs(signal_value(encoded, float(t))) for t in grid)
+    return float(np.max(np.abs(signal_values(encoded, grid))))
 
 
 def check_reference(reference: Reference, plant: PlantParams, duration_s: float) -> None:

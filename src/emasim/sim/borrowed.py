@@ -22,6 +22,8 @@ import numba as nb
 from numba import types
 from numba.core.extending import intrinsic
 
+from ..jit import njit
+
 
 @intrinsic
 def _data_pointer(typingctx, array):
@@ -34,7 +36,7 @@ def _data_pointer(typingctx, array):
     return signature, codegen
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def borrowed(array):
     """A view of a C-contiguous array's data without reference counting (module docstring)."""
     return nb.carray(_data_pointer(array), array.shape)

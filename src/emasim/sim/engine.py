@@ -14,7 +14,6 @@ the loop is compiled once, eagerly and cached on disk, whatever the controllers.
 
 import time
 
-import numba as nb
 import numpy as np
 from numba import types
 
@@ -30,6 +29,7 @@ from ..interface import (
     R_RATE,
     R_VALUE,
 )
+from ..jit import njit
 from ..numerics import clamp
 from ..plant import actuator as A
 from ..plant.element import Layout, Quantity
@@ -113,7 +113,7 @@ NOT_FINITE = 1
 OUT_OF_BOUNDS = 2
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch):
     """One control sample: read the sensors, run the slots that close (position, speed, then
     current), and return (ud, uq, speed_ref, iq_ref, position_ref) applied from t on.
@@ -152,7 +152,7 @@ def control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch):
     return u_d, u_q, r, iq_ref, position_ref
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _stage(xs, x, k, dt, z, n):
     """xs = x + dt k for the first n states but the bristle, which is set to z."""
     for i in range(n):
@@ -160,7 +160,7 @@ def _stage(xs, x, k, dt, z, n):
     xs[A.X_Z] = z
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     """Advance x by one RK4 sub-step h with the voltages held; ``work`` is a
     :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
@@ -197,7 +197,7 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def check_state(x, limits, status, tick):
     """Flag the first state that is NaN/inf or beyond its limit; True when all are fine."""
     for i in range(A.N_STATE):
@@ -210,7 +210,7 @@ def check_state(x, limits, status, tick):
     return True
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
     """Write one trace row (layout TRACE)."""
     row[0] = t
@@ -229,7 +229,7 @@ def record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, mea
     row[C_MEASURED_POSITION] = meas[M_POSITION]
 
 
-@nb.njit(cache=True, inline="always", error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _borrow(x, plant, signals, sensors, slots, workspace, trace, status):
     """Every array run_ticks is given, as a borrowed view (emasim.sim.borrowed)."""
     rk4 = workspace.rk4
@@ -284,7 +284,7 @@ RUN_SIG = types.void(
 )
 
 
-@nb.njit(RUN_SIG, cache=True, error_model="numpy", nogil=True)
+@njit(RUN_SIG, cache=True, error_model="numpy", nogil=True)
 def run_ticks(
     k0,
     k1,

@@ -38,10 +38,10 @@ import weakref
 from importlib import resources
 from pathlib import Path
 
-import numba as nb
 import numpy as np
 
 from ..errors import EmasimError, InputError
+from ..jit import njit
 from ..plant import actuator as A
 from ..plant import linkage as L
 from .engine import plant_step
@@ -116,7 +116,7 @@ def register_step_and_inputs(slave, inputs) -> None:
 CONSTANT_VALUE = 3  # index of the value in a one-term constant signal (emasim.signals.encode)
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def plant_substeps(t, x, u_d, u_q, p, signals, h, n, work):
     """n sub-steps of :func:`emasim.sim.engine.plant_step` from t, as the engine runs a tick;
     ``signals`` (emasim.sim.core.SignalArrays) holds the loads."""

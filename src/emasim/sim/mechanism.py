@@ -6,13 +6,13 @@ extension is s(t) = s0 + v (t - t0). The 16 linkage states are integrated with f
 exchanged: the rudder angle and the rod's load force.
 """
 
-import numba as nb
 import numpy as np
 
+from ..jit import njit
 from ..plant import linkage as L
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def advance(y, s0, v, duration, substeps, rudder_torque, q, hinges):
     """Integrate y over ``duration`` with the rod at s0 + v t; return the final axial force.
 

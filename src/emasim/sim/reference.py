@@ -9,10 +9,10 @@ can measure the engine's error. Users' runs never go through it.
 
 import time
 
-import numba as nb
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from ..jit import njit
 from ..plant import actuator as A
 from ..plant import linkage as L
 from ..plant.sensors import seed_noise
@@ -23,7 +23,7 @@ from .result import Result
 ATOL = A.PLANT.atol()  # absolute tolerance of every state, from the elements' declarations
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _rhs(t, x, u_d, u_q, p, signals, t_end):
     """Plant derivative with the loads read inside [t_start, t_end): a load step on a tick
     boundary belongs to the next tick, as it does in the engine."""
@@ -37,7 +37,7 @@ def _rhs(t, x, u_d, u_q, p, signals, t_end):
     return dx
 
 
-@nb.njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def _tick(
     t, x, plant, signals, sensors, position_law, speed_law, current_law, slots, timing, scratch
 ):

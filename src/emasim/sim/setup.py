@@ -11,7 +11,7 @@ from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
 from ..signals import ZERO
-from .core import Core, PlantArrays, SensorArrays, SignalArrays, Timing, new_workspace
+from .core import Core, LawAddress, PlantArrays, SensorArrays, SignalArrays, Timing, new_workspace
 from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
 
 
@@ -95,7 +95,7 @@ class Setup:
         changes (plant state, slot states, play operators), and an empty trace."""
         n = self.n_ticks
         position = self.position if self.position is not None else self.speed  # never called
-        laws = (position.law, self.speed.law, self.current.law)
+        laws = tuple(LawAddress.of(c.function) for c in (position, self.speed, self.current))
         slots = tuple(
             (_floats(c.params), _floats(c.state).copy())
             for c in (position, self.speed, self.current)

@@ -1,0 +1,56 @@
+"""Checking a scenario, listing and the help never load the compiled core.
+
+numba and scipy take about a second to import; a command that only validates its input must
+answer before that (emasim.jit defers every compiled function to its first use). Each check
+runs in a fresh interpreter, since this test process has loaded numba long ago.
+"""
+
+import subprocess
+import sys
+
+import pytest
+
+PROBE = """
+import sys
+{body}
+heavy = sorted(m for m in ("numba", "scipy", "matplotlib", "pandas") if m in sys.modules)
+print(",".join(heavy))
+"""
+
+
+def loaded_after(body: str) -> str:
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(body=body)], capture_output=True, text=True, check=True
+    )
+    return done.stdout.strip()
+
+
+@pytest.mark.parametrize(
+    "body",
+    [
+        "from emasim.scenarios.loader import builtin_scenarios, load_scenario\n"
+        "for name in builtin_scenarios():\n"
+        "    load_scenario(name).variants()",
+        "from emasim.cli import app\n"
+        "from typer.testing import CliRunner\n"
+        "assert CliRunner().invoke(app, ['list']).exit_code == 0",
+        "from emasim.cli import app\n"
+        "from typer.testing import CliRunner\n"
+        "assert CliRunner().invoke(app, ['run', 'speed-step', '--set', 'duration_ms=2']).exit_code"
+        " == 2",
+    ],
+    ids=["validate every shipped scenario", "emasim list", "an input error"],
+)
+def test_no_heavy_import_before_the_simulation(body):
+    assert loaded_after(body) == ""
+
+
+def test_the_first_simulation_loads_numba():
+    """The other side: the probe can see numba, so an empty answer above means something."""
+    body = (
+        "from emasim.scenarios.loader import load_scenario\n"
+        "from emasim.sim.engine import simulate\n"
+        "simulate(load_scenario('speed-step', controllers=['speed=pi']).setup()"
+        ".with_(duration_s=1e-3))"
+    )
+    assert "numba" in loaded_after(body).split(",")
