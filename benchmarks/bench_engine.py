@@ -69,22 +69,31 @@ STARTUP = {
     "list": (["list"], 0),
     "input_error": (["run", "speed-step", "--set", "duration_ms=2"], 2),
     "run_speed_step_pi": (["run", "speed-step", "-c", "speed=pi", "--out", "{out}/run"], 0),
+    "run_speed_step_pi_no_plot": (
+        ["run", "speed-step", "-c", "speed=pi", "--no-plot", "--out", "{out}/run"],
+        0,
+    ),
 }
 QUICK_STARTUP = ("help", "input_error")
 
 # Run in a fresh process: simulate speed-sine for each duration in argv, in turn, and print the
 # peak RSS so far (ru_maxrss: kB on Linux, bytes on macOS) and the kept trace's bytes after each.
+# With "analysis" first, the run records only the columns its metrics and plots read.
 MEMORY_CHILD = """
 import json, resource, sys
+from emasim.analysis.report import ANALYSIS_COLUMNS
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
 setup = load_scenario("speed-sine").setup()
+durations = sys.argv[1:]
+if durations[0] == "analysis":
+    setup, durations = setup.with_(record_signals=ANALYSIS_COLUMNS), durations[1:]
 unit = 1 if sys.platform == "darwin" else 1024
-for text in sys.argv[1:]:
+for text in durations:
     result = simulate(setup.with_(duration_s=float(text)))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
     print(json.dumps({"duration_s": float(text), "peak_rss_bytes": peak,
-                      "trace_bytes": int(result.data.nbytes)}))
+                      "trace_bytes": int(result.data.nbytes), "columns": len(result.columns)}))
     del result
 """
 
@@ -182,10 +191,12 @@ def reproduce_seconds() -> float:
     return process_seconds(["reproduce", "--out", "{out}/report"])
 
 
-def peak_memory(*durations_s: float) -> list[dict]:
+def peak_memory(*durations_s: float, analysis_only: bool = False) -> list[dict]:
     """Peak RSS of one fresh process after simulating each of ``durations_s`` of speed-sine in
-    turn, the kept trace's bytes and their ratio (MEMORY_CHILD)."""
-    cmd = [sys.executable, "-c", MEMORY_CHILD, *(repr(float(d)) for d in durations_s)]
+    turn, the kept trace's bytes and their ratio (MEMORY_CHILD); ``analysis_only`` records
+    only the columns the metrics and plots read."""
+    flag = ["analysis"] if analysis_only else []
+    cmd = [sys.executable, "-c", MEMORY_CHILD, *flag, *(repr(float(d)) for d in durations_s)]
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True)
     runs = [json.loads(line) for line in proc.stdout.splitlines()]
     for run in runs:
@@ -200,6 +211,11 @@ def memory_figures(durations_s) -> dict:
     del baseline["ratio"]  # a 1 ms trace: the ratio says nothing
     for duration in durations_s[1:]:
         runs += peak_memory(duration)
+    runs += peak_memory(durations_s[-1], analysis_only=True)
+    for run in runs:  # what the run adds to the process: above the baseline, per trace byte
+        run["added_ratio"] = (run["peak_rss_bytes"] - baseline["peak_rss_bytes"]) / run[
+            "trace_bytes"
+        ]
     return {"baseline": baseline, "runs": runs}
 
 

@@ -32,6 +32,7 @@ STARTUP = (  # key in results["startup_s"], what the fresh process runs
     ("list", "`emasim list`"),
     ("input_error", "`emasim run speed-step --set duration_ms=2` (an input error, exit 2)"),
     ("run_speed_step_pi", "`emasim run speed-step -c speed=pi` (one run, plots included)"),
+    ("run_speed_step_pi_no_plot", "`emasim run speed-step -c speed=pi --no-plot` (one run)"),
 )
 FRESH_RUNS = (  # top-level key, what, how
     (
@@ -156,10 +157,12 @@ def memory_rows(results: dict) -> list[tuple[str, str, str]]:
     for run in memory["runs"]:
         rows.append(
             (
-                f"simulate {given(run['duration_s'])} of `speed-sine`, keeping its trace",
+                f"simulate {given(run['duration_s'])} of `speed-sine` at 10 kHz, keeping its "
+                f"trace of {run['columns']} columns",
                 how,
                 f"{megabytes(run['peak_rss_bytes'])} for a trace of "
-                f"{megabytes(run['trace_bytes'])} ({run['ratio']:.2f}× the trace)",
+                f"{megabytes(run['trace_bytes'])} ({run['ratio']:.2f}× the trace; the run adds "
+                f"{run['added_ratio']:.2f}× the trace to the baseline)",
             )
         )
     return rows

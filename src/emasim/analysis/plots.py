@@ -1,11 +1,7 @@
 """Figures: one run (response, inner command, current) or several runs overlaid."""
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only; no display is needed or assumed
-
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure  # files only: no pyplot, no display (a second of start-up)
 
 RPM_PER_RAD_S = 30.0 / np.pi
 
@@ -35,7 +31,8 @@ def plot_result(result, title: str | None = None):
     current and its command."""
     t = result.t
     position_run = result.outer_loop == "position"
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
+    fig = Figure(figsize=(8, 7.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     if position_run:
         _line(axes[0], t, 1e3 * result["position_ref_m"], "k--", lw=1, label="reference")
         _line(axes[0], t, 1e3 * result["actuator_position_m"], lw=1.4, label="rod position")
@@ -84,7 +81,8 @@ def _output(result):
 
 def plot_comparison(results: dict, title: str | None = None):
     """Runs of several controller sets overlaid: output and reference, tracking error, current."""
-    fig, axes = plt.subplots(3, 1, sharex=True, figsize=(8, 7.5), constrained_layout=True)
+    fig = Figure(figsize=(8, 7.5), layout="constrained")
+    axes = fig.subplots(3, 1, sharex=True)
     first = next(iter(results.values()))
     label, scale, column, ref_column = _output(first)
     if ref_column is None:  # rudder: the scenario's command, in rad
@@ -115,9 +113,8 @@ def plot_comparison(results: dict, title: str | None = None):
 
 
 def save_figure(figure, path, dpi: int = 110) -> None:
-    """Write a figure to a file and free it."""
+    """Write a figure to a file (PNG by the path's suffix, through matplotlib's Agg canvas)."""
     figure.savefig(path, dpi=dpi)
-    plt.close(figure)
 
 
 def plot_bench(results: dict, title: str | None = None):
@@ -125,14 +122,8 @@ def plot_bench(results: dict, title: str | None = None):
     (bottom), one column per controller set, the reference dashed."""
     from .report import rudder_traces
 
-    fig, axes = plt.subplots(
-        2,
-        len(results),
-        sharex=True,
-        squeeze=False,
-        figsize=(5 * len(results), 6),
-        constrained_layout=True,
-    )
+    fig = Figure(figsize=(5 * len(results), 6), layout="constrained")
+    axes = fig.subplots(2, len(results), sharex=True, squeeze=False)
     for col, (name, result) in enumerate(results.items()):
         angle, reference, rate, reference_rate = rudder_traces(result)
         _line(axes[0, col], result.t, reference, "k--", lw=1, label="command")
@@ -153,7 +144,8 @@ def plot_bench(results: dict, title: str | None = None):
 
 def plot_clearance_sweep(rows: list[dict]):
     """Rudder steady RMS error and vibration amplitude against hinge clearance, per controller."""
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.5), constrained_layout=True)
+    fig = Figure(figsize=(9, 3.5), layout="constrained")
+    axes = fig.subplots(1, 2)
     for label in dict.fromkeys(r["controller"] for r in rows):
         mine = [r for r in rows if r["controller"] == label]
         clearance = [r["clearance_mm"] for r in mine]

@@ -37,6 +37,23 @@ DEAD_ZONE_MM = 0.01  # the output has "moved" once it is 10 um from where it sta
 BENCH_STEADY_S = 2.0  # bench experiments: steady-state statistics from this time on
 BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
+# every trace column the metrics and the plots read: a run that records chosen signals
+# (solver.record_signals) records these too (the linkage's only with a linkage)
+ANALYSIS_COLUMNS = (
+    "t_s",
+    "motor_speed_rad_s",
+    "speed_ref_rad_s",
+    "iq_A",
+    "iq_ref_A",
+    "torque_Nm",
+    "friction_torque_Nm",
+    "load_torque_Nm",
+    "actuator_position_m",
+    "actuator_velocity_m_s",
+    "position_ref_m",
+    "rudder_angle_rad",
+    "linkage_rudder_rate_rad_s",
+)
 
 
 def undefined_metrics(metrics: dict) -> dict[str, str]:

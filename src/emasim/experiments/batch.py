@@ -8,8 +8,6 @@ schedule. Pass ``scheduler`` (any of Dask's: "threads", "processes", "synchronou
 distributed Client's) to run elsewhere.
 """
 
-import dask
-
 from ..sim.cosim import check_fmu_trust
 from ..sim.result import Comparison
 from .runs import meta_of, run_scenario
@@ -20,6 +18,8 @@ def run_all(scenarios, scheduler="threads", trust_fmu: bool = False, labels=None
 
     ``labels`` name the runs (one per scenario); ``trust_fmu`` as in ``run_scenario``.
     """
+    import dask  # here: a single run needs none of it (0.17 s of start-up)
+
     scenarios = list(scenarios)
     labels = list(labels) if labels is not None else [None] * len(scenarios)
     tasks = [

@@ -6,7 +6,7 @@ import platform
 from importlib.metadata import version
 
 from .. import __version__
-from ..analysis.report import run_metrics, undefined_metrics
+from ..analysis.report import ANALYSIS_COLUMNS, run_metrics, undefined_metrics
 from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
@@ -38,7 +38,10 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     if scenario.solver.communication_step_s is not None:
         result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
     else:
-        result = simulate(scenario.setup(), progress=progress)
+        setup = scenario.setup()
+        if setup.record_signals is not None:  # and what the metrics and plots read
+            setup = setup.with_(record_signals=(*setup.record_signals, *ANALYSIS_COLUMNS))
+        result = simulate(setup, progress=progress)
     result.scenario = scenario.model_dump(mode="json", exclude_none=True)
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
     result.meta["label"] = label or scenario.controllers_label()

@@ -8,11 +8,12 @@ dotted path and the allowed range. :meth:`Scenario.setup` compiles a scenario in
 of a :class:`emasim.sim.setup.Setup`.
 """
 
+import difflib
 import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from ..control.current import CurrentPI
 from ..control.pid import SpeedPI
@@ -23,6 +24,7 @@ from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
 from ..signals import ZERO, Table, Term, combine, encode, signal_value, signal_values
+from ..sim.trace import TRACE_COLUMNS
 
 if TYPE_CHECKING:
     from ..sim.setup import Setup
@@ -38,6 +40,12 @@ class Solver(Strict):
     sample_period_s: float = Field(default=1e-4, ge=1e-6, le=0.01)
     step_s: float = Field(default=1e-5, ge=1e-8, le=0.01)
     record_period_s: float = Field(default=1e-3, ge=1e-6, le=1.0)
+    record_signals: list[str] | None = Field(
+        default=None,
+        max_length=len(TRACE_COLUMNS),
+        description="trace columns to record (t_s always, and the columns the metrics and plots "
+        "read); default every column of the plant's elements",
+    )
     communication_step_s: float | None = Field(
         default=None,
         ge=1e-6,
@@ -52,6 +60,18 @@ class Solver(Strict):
         "in the co-simulation (inputs rod_velocity_m_s [, rod_position_m], outputs "
         "rudder_angle_rad, rod_force_N; see emasim.sim.fmi); needs communication_step_s",
     )
+
+    @field_validator("record_signals")
+    @classmethod
+    def _known_signals(cls, names):
+        for name in names or []:
+            if name not in TRACE_COLUMNS:
+                close = difflib.get_close_matches(name, TRACE_COLUMNS, n=1)
+                hint = f"; did you mean '{close[0]}'?" if close else ""
+                raise ValueError(
+                    f"unknown signal {name!r}{hint}; allowed: {', '.join(TRACE_COLUMNS)}"
+                )
+        return names
 
     @model_validator(mode="after")
     def _fmu_needs_cosimulation(self):
@@ -361,6 +381,9 @@ class Scenario(Strict):
             x0=self.plant.initial_state(),
             limits=A.PLANT.limits(self.plant),
             facts=facts,
+            record_signals=(
+                None if self.solver.record_signals is None else tuple(self.solver.record_signals)
+            ),
         )
 
 

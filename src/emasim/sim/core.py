@@ -12,6 +12,8 @@ One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
   their arrays travel as one tuple;
 * :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed and
   which loops close;
+* :class:`TraceArrays`: the recorded columns, which the loop fills every ``record_every``
+  ticks;
 * :class:`Workspace`: the scratch arrays of the RK4 stages and of the control tick, made by
   the caller so that the loop can borrow them (emasim.sim.borrowed).
 
@@ -129,6 +131,17 @@ class Workspace(NamedTuple):
     out: np.ndarray
 
 
+class TraceArrays(NamedTuple):
+    """The recorded traces, one row of ``data`` per kept column (so each signal is contiguous,
+    and a Result and its Parquet file take it without a copy); ``columns`` holds the TRACE
+    index (emasim.sim.engine) of each kept column, and ``row`` is the scratch a full TRACE
+    row is assembled in before its kept columns are stored."""
+
+    data: np.ndarray
+    columns: np.ndarray
+    row: np.ndarray
+
+
 class Core(NamedTuple):
     """Everything :func:`emasim.sim.engine.run_ticks` reads besides the state and the trace,
     in its argument order: ``run_ticks(k0, k1, x, *core, trace, status)``."""
@@ -149,6 +162,7 @@ SIGNALS_TYPE = types.NamedUniTuple(F8A, 4, SignalArrays)
 SENSORS_TYPE = types.NamedTuple((F8A2, F8A), SensorArrays)
 TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8), Timing)
 RK4_TYPE = types.UniTuple(F8A, 5)
+TRACE_TYPE = types.NamedTuple((F8A2, types.int64[::1], F8A), TraceArrays)
 WORKSPACE_TYPE = types.NamedTuple((RK4_TYPE, F8A2, F8A, F8A, F8A), Workspace)
 SLOTS_TYPE = types.UniTuple(types.UniTuple(F8A, 2), 3)  # (params, state) of each slot
 LAW_TYPE = CONTROLLER_TYPE

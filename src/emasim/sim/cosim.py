@@ -47,7 +47,7 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
         raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
     if scenario.load.rod_force_N:
         raise InputError("co-simulation takes motor_torque_Nm and rudder_torque_Nm loads only")
-    linked = scenario.setup()
+    linked = scenario.setup().with_(record_signals=None)  # the mechanism fills every column
     ts = linked.sample_period_s
     ticks = round(communication_step_s / ts)
     if ticks < 1 or abs(ticks * ts - communication_step_s) > 1e-9 * communication_step_s:
@@ -62,7 +62,8 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
             plant=_rod_only(drive_plant.pack(), plant.linkage.rod_mass_kg),
             rod_load=rod_force,
             x0=drive_plant.initial_state(),
-        )
+        ),
+        keep_elements=("linkage",),
     )
     q = plant.linkage.pack()
     y = linked.x0[A.X_LINK : A.X_LINK_END].copy()
@@ -90,7 +91,7 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     finally:
         if fmu is not None:
             fmu.close()
-    result = drive.result(keep_elements=("linkage",))  # filled from the mechanism below
+    result = drive.result()  # its linkage columns are filled from the mechanism below
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
     rows = np.arange(result.data.shape[0]) * linked.record_every
     for i, name in enumerate(L.LINK_STATE_NAMES):

@@ -32,7 +32,6 @@ from ..interface import (
 from ..jit import njit
 from ..numerics import clamp
 from ..plant import actuator as A
-from ..plant.element import Layout, Quantity
 from ..plant.motor import limit_voltage
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
@@ -40,7 +39,6 @@ from .borrowed import borrowed
 from .core import (
     CURRENT_SLOT,
     F8A,
-    F8A2,
     LAW_TYPE,
     PLANT_TYPE,
     POSITION_SLOT,
@@ -49,61 +47,36 @@ from .core import (
     SLOTS_TYPE,
     SPEED_SLOT,
     TIMING_TYPE,
+    TRACE_TYPE,
     WORKSPACE_TYPE,
     PlantArrays,
     SensorArrays,
     SignalArrays,
+    TraceArrays,
     Workspace,
 )
 from .diagnosis import likely_cause
 from .result import Result, RunDescription
+from .trace import (
+    C_IQ_REF,
+    C_MEASURED_POSITION,
+    C_MEASURED_SPEED,
+    C_MOTOR_LOAD,
+    C_OUTPUTS,
+    C_POSITION_REF,
+    C_ROD_LOAD,
+    C_RUDDER_LOAD,
+    C_SPEED_REF,
+    C_STATE,
+    C_UD,
+    C_UQ,
+    TRACE,
+    TRACE_COLUMNS,
+)
 
 LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
 LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
 LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
-
-# trace columns: time, the plant's states, the loops' signals, the elements' outputs, the
-# loads, the measurements the controllers saw; each with its unit (TRACE.units())
-CONTROL_COLUMNS = (
-    Quantity("speed_ref_rad_s", "rad/s", "speed command (NaN when the position loop commands iq)"),
-    Quantity("iq_ref_A", "A", "q-axis current command"),
-    Quantity("position_ref_m", "m", "rod position reference (NaN in a speed-loop run)"),
-    Quantity("ud_V", "V", "d-axis stator voltage, limited by the inverter"),
-    Quantity("uq_V", "V", "q-axis stator voltage, limited by the inverter"),
-)
-LOAD_COLUMNS = (
-    Quantity("load_torque_Nm", "N m", "external load torque on the motor shaft"),
-    Quantity("rod_load_N", "N", "external force on the rod, positive opposing extension"),
-    Quantity("rudder_load_Nm", "N m", "load torque on the rudder shaft (linkage)"),
-)
-MEASURED_COLUMNS = (
-    Quantity("measured_speed_rad_s", "rad/s", "speed sensor reading"),
-    Quantity("measured_position_m", "m", "rod position sensor reading"),
-)
-TRACE = Layout(
-    (
-        Quantity("t_s", "s", "time"),
-        *A.PLANT.states.quantities,
-        *CONTROL_COLUMNS,
-        *A.PLANT.outputs.quantities,
-        *LOAD_COLUMNS,
-        *MEASURED_COLUMNS,
-    )
-)
-TRACE_COLUMNS = TRACE.names
-N_COLUMNS = len(TRACE)
-C_STATE = TRACE.index(A.STATE_NAMES[0])
-C_SPEED_REF = TRACE.index("speed_ref_rad_s")
-C_IQ_REF = TRACE.index("iq_ref_A")
-C_POSITION_REF = TRACE.index("position_ref_m")
-C_UD = TRACE.index("ud_V")
-C_UQ = TRACE.index("uq_V")
-C_OUTPUTS = TRACE.index(A.PLANT.outputs.names[0])
-C_MOTOR_LOAD = TRACE.index("load_torque_Nm")
-C_ROD_LOAD = TRACE.index("rod_load_N")
-C_RUDDER_LOAD = TRACE.index("rudder_load_Nm")
-C_MEASURED_SPEED = TRACE.index("measured_speed_rad_s")
-C_MEASURED_POSITION = TRACE.index("measured_position_m")
 
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
 
@@ -211,8 +184,9 @@ def check_state(x, limits, status, tick):
 
 
 @njit(cache=True, error_model="numpy")
-def record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
-    """Write one trace row (layout TRACE)."""
+def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
+    """Store row r of the traces: the kept columns of the TRACE row (core.TraceArrays)."""
+    row = trace.row
     row[0] = t
     for i in range(A.N_STATE):
         row[C_STATE + i] = x[i]
@@ -227,6 +201,8 @@ def record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, mea
     row[C_RUDDER_LOAD] = signal_value(signals.rudder_load, t)
     row[C_MEASURED_SPEED] = meas[M_SPEED]
     row[C_MEASURED_POSITION] = meas[M_POSITION]
+    for j in range(trace.columns.size):
+        trace.data[j, r] = row[trace.columns[j]]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -261,7 +237,7 @@ def _borrow(x, plant, signals, sensors, slots, workspace, trace, status):
             borrowed(workspace.ref),
             borrowed(workspace.out),
         ),
-        borrowed(trace),
+        TraceArrays(borrowed(trace.data), borrowed(trace.columns), borrowed(trace.row)),
         borrowed(status),
     )
 
@@ -279,7 +255,7 @@ RUN_SIG = types.void(
     SLOTS_TYPE,
     TIMING_TYPE,
     WORKSPACE_TYPE,
-    F8A2,  # trace
+    TRACE_TYPE,
     types.int64[::1],  # status
 )
 
@@ -304,7 +280,7 @@ def run_ticks(
     """Run ticks k0 .. k1-1 in place on x, the slots' states and the sensors' play operators
     (the records of emasim.sim.core), every array borrowed (emasim.sim.borrowed).
 
-    Rows of ``trace`` are written at every ``record_every``-th tick (row k // record_every).
+    Row k // record_every of ``trace`` is recorded at every ``record_every``-th tick.
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
     plant's limits the run stops and ``status`` holds (code, tick, state index).
     """
@@ -325,8 +301,10 @@ def run_ticks(
             t, x, plant, signals, sensors, laws, slots, timing, scratch
         )
         if k % timing.record_every == 0:
-            row = trace[k // timing.record_every]
-            record(row, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, scratch[0])
+            r = k // timing.record_every
+            record(
+                trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, scratch[0]
+            )
         for j in range(timing.substeps):
             plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, workspace)
         if not check_state(x, plant.limits, status, k + 1):
@@ -355,9 +333,10 @@ class EngineRun:
     ``run.x`` is the plant state in between (a co-simulation master reads and feeds it).
     """
 
-    def __init__(self, setup):
+    def __init__(self, setup, keep_elements: tuple[str, ...] = ()):
         self.setup = setup
-        self.run = setup.start()
+        self.keep_elements = keep_elements
+        self.run = setup.start(keep_elements)
         self.status = np.zeros(3, dtype=np.int64)
         self.tick = 0
         self.wall_s = 0.0
@@ -371,20 +350,17 @@ class EngineRun:
             raise SimulationDiverged(_divergence_message(self.setup, self.status))
         self.tick = k_end
 
-    def result(self, keep_elements: tuple[str, ...] = ()) -> Result:
-        """The traces so far, without the columns of elements absent from this plant (their
-        states idle, their outputs NaN), but for the elements named in ``keep_elements``."""
+    def result(self) -> Result:
+        """The traces so far: the kept columns (Setup.kept_columns), without a copy."""
         setup = self.setup
-        absent = A.PLANT.absent_columns(setup.plant, keep=keep_elements)
-        keep = [i for i, name in enumerate(TRACE_COLUMNS) if name not in absent]
-        columns = tuple(TRACE_COLUMNS[i] for i in keep)
+        columns = tuple(TRACE_COLUMNS[i] for i in self.run.trace.columns)
         units = TRACE.units()
         return Result(
             columns,
-            np.ascontiguousarray(self.run.trace[:, keep]),
+            self.run.trace.data.T,
             meta={"simulation_wall_s": self.wall_s},
             description=RunDescription(
-                elements=A.PLANT.present_elements(setup.plant, keep=keep_elements),
+                elements=A.PLANT.present_elements(setup.plant, keep=self.keep_elements),
                 loops=setup.loop_laws(),
                 outer_loop="speed" if setup.position is None else "position",
                 sensors=setup.sensor_description(),

@@ -61,9 +61,9 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
             t, x, plant, signals, sensors, *laws, slots, timing, scratch
         )
         if k % setup.record_every == 0:
-            row = run.trace[k // setup.record_every]
             record(
-                row,
+                run.trace,
+                k // setup.record_every,
                 t,
                 x,
                 plant.params,
@@ -88,4 +88,5 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
             raise RuntimeError(f"reference solver failed at t = {t:g} s: {sol.message}")
         x = sol.y[:, -1].copy()
     wall = time.perf_counter() - start
-    return Result(TRACE_COLUMNS, run.trace, meta={"simulation_wall_s": wall, "solver": method})
+    columns = tuple(TRACE_COLUMNS[i] for i in run.trace.columns)
+    return Result(columns, run.trace.data.T, meta={"simulation_wall_s": wall, "solver": method})

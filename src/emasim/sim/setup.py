@@ -11,8 +11,18 @@ from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import true_values
 from ..signals import ZERO
-from .core import Core, LawAddress, PlantArrays, SensorArrays, SignalArrays, Timing, new_workspace
-from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED, N_COLUMNS
+from .core import (
+    Core,
+    LawAddress,
+    PlantArrays,
+    SensorArrays,
+    SignalArrays,
+    Timing,
+    TraceArrays,
+    new_workspace,
+)
+from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
+from .trace import TRACE_COLUMNS
 
 
 @dataclass
@@ -41,6 +51,7 @@ class Setup:
     x0: np.ndarray = field(default_factory=lambda: np.zeros(A.N_STATE))
     limits: np.ndarray = field(default_factory=lambda: np.full(A.N_STATE, 1e12))
     facts: PlantFacts | None = None  # the drive's ratings, for diagnosing a divergence
+    record_signals: tuple[str, ...] | None = None  # trace columns to keep (None: every one)
 
     def __post_init__(self):
         for name in ("sample_period_s", "duration_s"):
@@ -90,9 +101,22 @@ class Setup:
         """A copy with some fields replaced."""
         return replace(self, **changes)
 
-    def start(self) -> "RunState":
+    def kept_columns(self, keep_elements: tuple[str, ...] = ()) -> tuple[str, ...]:
+        """The trace columns a run stores, in TRACE order: t_s and the columns named in
+        ``record_signals`` (every one when None), less those of elements absent from the
+        plant (their states idle, their outputs NaN) but for the elements in keep_elements."""
+        absent = A.PLANT.absent_columns(self.plant, keep=keep_elements)
+        chosen = None if self.record_signals is None else {TRACE_COLUMNS[0], *self.record_signals}
+        return tuple(
+            name
+            for name in TRACE_COLUMNS
+            if name not in absent and (chosen is None or name in chosen)
+        )
+
+    def start(self, keep_elements: tuple[str, ...] = ()) -> "RunState":
         """The compiled core's inputs (emasim.sim.core), with fresh copies of everything a run
-        changes (plant state, slot states, play operators), and an empty trace."""
+        changes (plant state, slot states, play operators), and an empty trace of the columns
+        :meth:`kept_columns` names."""
         n = self.n_ticks
         position = self.position if self.position is not None else self.speed  # never called
         laws = tuple(LawAddress.of(c.function) for c in (position, self.speed, self.current))
@@ -120,8 +144,14 @@ class Setup:
             ),
             new_workspace(),
         )
+        kept = self.kept_columns(keep_elements)
+        rows = (n + self.record_every - 1) // self.record_every
         return RunState(
-            trace=np.full(((n + self.record_every - 1) // self.record_every, N_COLUMNS), np.nan),
+            trace=TraceArrays(
+                np.full((len(kept), rows), np.nan),
+                np.array([TRACE_COLUMNS.index(name) for name in kept], dtype=np.int64),
+                np.full(len(TRACE_COLUMNS), np.nan),
+            ),
             x=_floats(self.x0).copy(),
             core=core,
         )
@@ -142,7 +172,7 @@ class RunState:
     loop always takes three slots; it calls the position slot only in a position loop).
     """
 
-    trace: np.ndarray
+    trace: TraceArrays
     x: np.ndarray
     core: Core
 
