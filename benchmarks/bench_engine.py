@@ -7,18 +7,21 @@ faster; 0.05 means 20x faster than real time), best of three runs in this proces
 compiled code loaded. Start-up: fresh ``python -m emasim`` processes with a warm numba cache
 (the default cache is warmed first by one ``emasim run speed-step``), each the median of five:
 ``--help``, ``list``, an input error (``run speed-step --set duration_ms=2``, which must exit
-with code 2) and one run (``run speed-step -c speed=pi``, plots included); and a fresh
-``emasim run speed-step`` (every controller) best of three with a warm cache, and one with an
-empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
+with code 2) and one run (``run speed-step -c speed=pi``, with and without its plot); and a
+fresh ``emasim run speed-step`` (every controller) best of three with a warm cache, and one
+with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
 Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
 Reproduce: a fresh ``emasim reproduce`` process, every paper experiment and the report.
 Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasim and loaded
 the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
 after each, with the bytes of the kept trace (``Result.data``) and peak / trace; 1000 s runs in
-a process of its own (MEMORY_S). Batch: BATCH_RUNS independent runs of speed-step with the PI
-speed loop (seed and backlash width differ per run), BATCH_S each, through ``run_all`` on
-Dask's threads, with one worker and with two, interleaved, median of three each; speed-up =
-1 worker / 2 workers.
+a process of its own (MEMORY_S), once with every column and once recording only the columns
+the metrics and plots read (``solver.record_signals``). Batch: BATCH_RUNS independent runs of
+speed-step with the PI speed loop (seed and backlash width differ per run), BATCH_S each,
+through ``run_all`` on Dask's threads, with one worker and with two, interleaved, median of
+three each; speed-up = 1 worker / 2 workers. Beside it, the same runs' compiled loop alone
+(EngineRun.advance, the GIL released) on one and on two Python threads: the scaling this
+machine's two cores allow.
 FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``.
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
@@ -40,6 +43,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -51,7 +55,7 @@ from readme_figures import RESULTS, write_readme
 from emasim.control.registry import CONTROLLERS
 from emasim.experiments.batch import run_all
 from emasim.scenarios.loader import builtin_scenarios, load_scenario
-from emasim.sim.engine import simulate
+from emasim.sim.engine import EngineRun, simulate
 from emasim.sim.reference import simulate_reference
 
 QUICK_S = 0.05
@@ -242,14 +246,35 @@ def batch_seconds(scenarios: list, workers: int) -> float:
         return time.perf_counter() - start
 
 
+def core_seconds(setups: list, threads: int) -> float:
+    """Wall time of the compiled loop alone (EngineRun.advance: no set-up, no metrics, the GIL
+    released) on each setup, spread over ``threads`` Python threads."""
+
+    def run(chunk):
+        for setup in chunk:
+            EngineRun(setup).advance(setup.n_ticks)
+
+    workers = [threading.Thread(target=run, args=(setups[i::threads],)) for i in range(threads)]
+    start = time.perf_counter()
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    return time.perf_counter() - start
+
+
 def batch_scaling(runs: int, duration_s: float, repeats: int = 3) -> dict:
-    """Median wall time of ``run_all`` on 1 and on 2 worker threads, interleaved."""
+    """Median wall time of ``run_all`` on 1 and on 2 worker threads, interleaved; and the same
+    for the compiled loop alone on 1 and 2 threads, the ceiling the machine allows."""
     scenarios = batch_scenarios(runs, duration_s)
+    setups = [scenario.setup() for scenario in scenarios]
     batch_seconds(scenarios[:1], 1)  # load compiled code
     times = {1: [], 2: []}
+    core = {1: [], 2: []}
     for _ in range(repeats):
         for workers in times:
             times[workers].append(batch_seconds(scenarios, workers))
+            core[workers].append(core_seconds(setups, workers))
     one, two = statistics.median(times[1]), statistics.median(times[2])
     return {
         "runs": runs,
@@ -257,6 +282,7 @@ def batch_scaling(runs: int, duration_s: float, repeats: int = 3) -> dict:
         "one_worker_s": one,
         "two_workers_s": two,
         "speedup": one / two,
+        "core_speedup": statistics.median(core[1]) / statistics.median(core[2]),
     }
 
 
@@ -360,7 +386,7 @@ def report(results: dict) -> None:
     print(
         f"batch of {batch['runs']} x {batch['duration_s']:g} s: 1 worker "
         f"{batch['one_worker_s']:.2f} s, 2 workers {batch['two_workers_s']:.2f} s, "
-        f"speed-up {batch['speedup']:.2f}"
+        f"speed-up {batch['speedup']:.2f} (compiled loop alone: {batch['core_speedup']:.2f})"
     )
     if "fmu" in results:
         fmu = results["fmu"]
