@@ -898,10 +898,14 @@ def kill(proc: subprocess.Popen) -> None:
     proc.communicate(timeout=TIMEOUT_S)
 
 
-def wait_for(condition, what: str, timeout_s: float = TIMEOUT_S) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+def wait_for(condition, proc: subprocess.Popen) -> None:
+    """Poll until ``condition`` holds or ``proc`` has ended; the caller's checks then say
+    which. No speed is asserted: a process that does neither within TIMEOUT_S hangs, and is
+    reported as one (subprocess.TimeoutExpired), as ``communicate`` reports it."""
+    deadline = time.monotonic() + TIMEOUT_S
+    while not condition() and proc.poll() is None:
+        if time.monotonic() > deadline:
+            raise subprocess.TimeoutExpired(proc.args, TIMEOUT_S)
         time.sleep(0.005)
 
 
@@ -912,7 +916,7 @@ KILL_RUN = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=1", "--o
 def test_process_killed_leaves_result_complete_or_absent(work, delay):
     proc = start(work, *KILL_RUN)
     if delay == "at-temporary":
-        wait_for(lambda: leftovers(work) or proc.poll() is not None, "the temporary folder")
+        wait_for(lambda: leftovers(work), proc)
     else:
         time.sleep(float(delay[:-1]))
     kill(proc)
@@ -981,7 +985,7 @@ def test_process_killed_tuning_resumes(work):
     args = ["tune", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.2", "--trials", "3"]
     args += ["--storage", "sqlite:///s.db", "--save", "t.toml"]
     proc = start(work, *args)
-    wait_for(lambda: running_trials(work / "s.db") or proc.poll() is not None, "the first trial")
+    wait_for(lambda: running_trials(work / "s.db"), proc)
     assert proc.poll() is None, "the tuning ended before it could be killed"
     kill(proc)
     assert running_trials(work / "s.db") == 1  # killed during its first trial

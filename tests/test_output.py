@@ -104,8 +104,13 @@ def test_leftovers_of_dead_processes_and_only_those_are_removed(tmp_path):
     (alive / MARKER).write_text("{}")
     similar = tmp_path / ".run.tmp-xyz"  # not our pattern
     similar.mkdir()
-    assert sorted(clean_leftovers(tmp_path)) == sorted([ours, ours_old])
+    empty = tmp_path / f".run.tmp-{pid}-0000beef"  # killed before its marker: nothing inside
+    empty.mkdir()
+    bare = tmp_path / f".plant.fmu.tmp-{pid}-abcdef12.fmu"  # our pattern, but a bare file
+    bare.write_text("a user's, for all emasim can tell")
+    assert sorted(clean_leftovers(tmp_path)) == sorted([ours, ours_old, empty])
     assert (users / "keep.txt").read_text() == "mine" and alive.exists() and similar.exists()
+    assert bare.read_text() == "a user's, for all emasim can tell"
 
 
 def test_the_next_write_cleans_the_leftovers(tmp_path):

@@ -16,8 +16,10 @@ Writing is atomic. A folder is built under a temporary name beside its target,
 ``.<name>.tmp-<pid>-<token>``, and renamed into place; without ``force`` the rename fails if
 anything took the place meanwhile, so two concurrent runs to one place either both succeed or
 the second is refused with one line. A kill at any moment leaves the target complete or absent;
-the temporaries of processes that no longer run are removed by the next write in that folder
-(only names of this exact pattern that hold the marker, or files of this exact pattern).
+the temporaries of processes that no longer run are removed by the next write in that folder:
+only folders of this exact pattern that hold the marker, or are empty. A file is written the
+same way, inside such a temporary marker folder, and hard-linked (or, with ``force``, renamed)
+into place; so no leftover is ever a bare file, and a bare file is never removed.
 
 Default run folders never collide: :func:`fresh_folder` gives
 ``runs/<scenario>/<what>-<YYYYmmdd-HHMMSS>`` with a ``-2``, ``-3``... suffix when taken.
@@ -178,26 +180,25 @@ def _alive(pid: int) -> bool:
 def clean_leftovers(folder: Path) -> list[Path]:
     """Remove the temporaries that killed emasim processes left in ``folder``; return them.
 
-    Only names of the module's temporary pattern whose process no longer runs, and, for a
-    folder, only one that holds the marker (or is empty): nothing of anyone else's.
+    Only folders of the module's temporary pattern whose process no longer runs, and of
+    those only one that holds the marker (a ``.old-`` one only with nothing outside its
+    manifest), or an empty one (``os.rmdir``, which cannot remove a file). A file is never
+    removed: nothing could prove it emasim's (write_file's temporaries are marker folders).
     """
     removed = []
     if not folder.is_dir():
         return removed
     for entry in folder.iterdir():
         match = _LEFTOVER.match(entry.name)
-        if match is None or _alive(int(match["pid"])) or entry.is_symlink():
+        if match is None or _alive(int(match["pid"])) or not entry.is_dir() or entry.is_symlink():
             continue
         with contextlib.suppress(OSError):
-            if entry.is_dir():
-                ours = is_emasim_folder(entry) and (
-                    ".tmp-" in entry.name or not foreign_files(entry)
-                )
-                if not (ours or _is_empty_folder(entry)):
-                    continue
+            if is_emasim_folder(entry) and (".tmp-" in entry.name or not foreign_files(entry)):
                 shutil.rmtree(entry)
+            elif _is_empty_folder(entry):
+                os.rmdir(entry)  # killed before its marker: empty, and rmdir removes no file
             else:
-                entry.unlink()
+                continue
             removed.append(entry)
     return removed
 
@@ -317,14 +318,20 @@ def write_file(
     writing (the new file is hard-linked into place, which fails if the name is taken)."""
     path = Path(path)
     check_file(path, force, is_ours, what)
-    tmp = _prepare(path, what)
+    folder = _prepare(path, what)  # the temporary: a marker folder holding the new file
     try:
-        if isinstance(content, Path):
-            shutil.copyfile(content, tmp)
-        else:
-            data = content.encode() if isinstance(content, str) else content
-            with open(tmp, "xb") as handle:
-                handle.write(data)
+        os.mkdir(folder)  # fails if the name exists: what is removed below is this process's
+    except OSError as err:
+        raise _os_error(what, path, err) from None
+    try:
+        write_marker(folder, "file", files=[path.name])
+        tmp = folder / path.name
+        with open(tmp, "xb") as handle:
+            if isinstance(content, Path):
+                with open(content, "rb") as source:
+                    shutil.copyfileobj(source, handle)
+            else:
+                handle.write(content.encode() if isinstance(content, str) else content)
         if force:
             os.replace(tmp, path)
         else:
@@ -336,8 +343,7 @@ def write_file(
     except OSError as err:
         raise _os_error(what, path, err) from None
     finally:
-        with contextlib.suppress(FileNotFoundError):
-            tmp.unlink()
+        shutil.rmtree(folder, ignore_errors=True)
     return path
 
 
