@@ -6,7 +6,7 @@ from emasim.interface import M_POSITION, M_RUDDER, M_SPEED, N_MEAS
 from emasim.plant import actuator as A
 from emasim.plant.parameters import SensorChannel, SensorParams
 from emasim.plant.presets import bench_sensors, sea805
-from emasim.plant.sensors import measure, read_sensor, seed_noise
+from emasim.plant.sensors import initial_state, measure, read_sensor, seed_noise
 
 
 def test_quantisation_offset_and_noise_statistics():
@@ -23,16 +23,15 @@ def test_measure_reads_every_channel_and_the_gap():
     p = plant.pack()
     x = np.zeros(A.N_STATE)
     x[A.X_WM], x[A.X_XL] = 50.0, 0.01
-    sensors = SensorParams(position=SensorChannel(gap_width=1e-3)).pack()
-    gap = np.zeros(N_MEAS)
-    gap[M_POSITION] = 0.01
+    sensors = SensorParams(position=SensorChannel(gap_width=1e-3)).pack(1e-4)
+    state = initial_state(x, p, sensors)
     meas = np.zeros(N_MEAS)
-    measure(x, p, sensors, gap, meas)
+    measure(x, p, sensors, state, meas, 0)
     assert meas[M_SPEED] == 50.0
     assert meas[M_RUDDER] == 0.01 / (plant.load.rudder_arm_mm * 1e-3)
     assert meas[M_POSITION] == 0.01  # inside the play: the reading holds
     x[A.X_XL] = 0.0112  # moves 1.2 mm: the reading follows at 0.5 mm behind
-    measure(x, p, sensors, gap, meas)
+    measure(x, p, sensors, state, meas, 1)
     assert np.isclose(meas[M_POSITION], 0.0112 - 0.5e-3)
 
 

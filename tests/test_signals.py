@@ -15,8 +15,8 @@ from emasim.signals import (
     Sine,
     Step,
     Table,
-    combine,
     encode,
+    lookup_table,
     signal_derivatives,
     signal_value,
     signal_values,
@@ -46,11 +46,18 @@ def test_each_term_matches_its_closed_form():
     assert np.all(values(ZERO, t) == 0.0)
 
 
-def test_sums_add_up():
+def test_terms_add_up_and_a_lookup_table_maps_any_abscissa():
     a = encode([Step(time_s=0.2, final=1.0), Sine(amplitude=0.5, frequency_Hz=2.0)])
-    b = encode([Ramp(slope_per_s=-1.0)], 3.0)
+    b = encode([Step(time_s=0.2, final=1.0)])
+    c = encode([Sine(amplitude=0.5, frequency_Hz=2.0)])
     t = np.linspace(0, 1, 51)
-    assert np.allclose(values(combine(a, b), t), values(a, t) + values(b, t))
+    assert np.allclose(values(a, t), values(b, t) + values(c, t))
+    x = np.array([-0.6, -0.1, 0.4])
+    y = np.array([-150.0, -20.0, 110.0])
+    grid = np.linspace(-1.0, 1.0, 41)
+    assert np.allclose(values(lookup_table(x, y), grid), np.interp(grid, x, y))
+    with pytest.raises(ValueError, match="strictly increasing"):
+        lookup_table(x[::-1], y)
 
 
 @settings(max_examples=40, deadline=None)

@@ -135,6 +135,15 @@ class _LazyProgress:
             self.bar.stop()
 
 
+def _print_warnings(by_label: dict[str, dict]) -> None:
+    """A warning line for each stop a run touched (emasim.analysis.report.run_warnings)."""
+    from .analysis.report import run_warnings
+
+    for label, metrics in by_label.items():
+        for line in run_warnings(metrics):
+            err_console.print(f"[bold yellow]warning:[/] {label}: {line}", highlight=False)
+
+
 def _print_metrics(by_label: dict[str, dict], title: str) -> None:
     """One row per metric, one column per run."""
     table = Table(title=title)
@@ -212,6 +221,7 @@ def run(
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")
+    _print_warnings(by_label)
     console.print(
         f"simulated {sc.duration_s:g} s x {len(by_label)} in "
         f"{result.meta['simulation_wall_s']:.3f} s (real-time factor "

@@ -132,18 +132,21 @@ class Table(_Term):
 Term = Annotated[Constant | Step | Sine | Ramp | Table, Field(discriminator="type")]
 
 
+def lookup_table(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The piecewise-linear map y(x), held constant outside [x[0], x[-1]], encoded as a signal
+    whose "time" is x (read with signal_value(table, x)); x strictly increasing, any sign."""
+    x, y = np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    if x.shape != y.shape or x.size < 2 or np.any(np.diff(x) <= 0.0):
+        raise ValueError("lookup_table needs x strictly increasing and y of the same length")
+    return np.concatenate(([1.0, KIND_TABLE, 2.0 * x.size], x, y))
+
+
 def encode(terms: list, scale: float = 1.0) -> np.ndarray:
     """Pack a list of terms into the flat array read by :func:`signal_value` (values * scale)."""
     flat = [float(len(terms))]
     for term in terms:
         flat.extend(term.packed(scale))
     return np.asarray(flat, dtype=np.float64)
-
-
-def combine(*encoded: np.ndarray) -> np.ndarray:
-    """The sum of several encoded signals, as one encoded signal."""
-    n_terms = sum(int(sig[0]) for sig in encoded)
-    return np.concatenate([[float(n_terms)], *(sig[1:] for sig in encoded)])
 
 
 ZERO = encode([])  # the signal that is 0 at all times

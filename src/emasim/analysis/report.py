@@ -20,6 +20,11 @@ angle, as a step or a sine. Every window and band is stated here, once:
   whether the rudder first moves against the command (below -REVERSE_DEG in the first second),
   the peak velocity in the first second, the velocity fluctuation (half peak-to-peak of the
   velocity about its best-fitting sine) after BENCH_STEADY_S.
+
+Every run also reports the time the drive spent at each of its limits (current, voltage,
+speed: the limit_flags the engine records at each recorded row, times the recording period)
+and, on a plant with end stops, the time in contact with the rod's and the rudder's stops and
+the largest stop force; :func:`run_warnings` turns a stop contact into a warning line.
 """
 
 import math
@@ -27,6 +32,7 @@ import math
 import numpy as np
 from pydantic import TypeAdapter
 
+from ..interface import LIMIT_CURRENT, LIMIT_SPEED, LIMIT_VOLTAGE
 from ..signals import Term, encode, signal_values
 from . import metrics as m
 
@@ -53,7 +59,11 @@ ANALYSIS_COLUMNS = (
     "position_ref_m",
     "rudder_angle_rad",
     "linkage_rudder_rate_rad_s",
+    "limit_flags",
+    "end_stop_force_N",
+    "rudder_stop_torque_Nm",
 )
+LIMITS = (("current", LIMIT_CURRENT), ("voltage", LIMIT_VOLTAGE), ("speed", LIMIT_SPEED))
 
 
 def undefined_metrics(metrics: dict) -> dict[str, str]:
@@ -124,10 +134,52 @@ def run_metrics(result) -> dict:
     """Metrics of a run, keyed with their unit (see the module docstring for definitions)."""
     quantity, shape = reference_kind(result.scenario)
     if quantity == "rudder":
-        return bench_sine_metrics(result) if shape == "sine" else bench_step_metrics(result)
-    if shape == "sine":
-        return speed_sine_metrics(result)
-    return step_metrics(result, quantity)
+        out = bench_sine_metrics(result) if shape == "sine" else bench_step_metrics(result)
+    elif shape == "sine":
+        out = speed_sine_metrics(result)
+    else:
+        out = step_metrics(result, quantity)
+    return {**out, **limit_metrics(result)}
+
+
+def _row_period(t: np.ndarray) -> float:
+    """The recording period (s): the time each recorded row stands for."""
+    return float(t[1] - t[0]) if t.size > 1 else 0.0
+
+
+def limit_metrics(result) -> dict:
+    """Time (s) the drive spent at each limit and, with end stops, in contact with them."""
+    t = result.t
+    dt = _row_period(t)
+    out = {}
+    if "limit_flags" in result.columns:
+        flags = np.nan_to_num(result["limit_flags"]).astype(np.int64)
+        for name, bit in LIMITS:
+            out[f"{name}_saturation_time_s"] = float(np.count_nonzero(flags & bit)) * dt
+    if "end_stop_force_N" in result.columns:
+        force = np.abs(result["end_stop_force_N"])
+        torque = np.abs(result["rudder_stop_torque_Nm"])
+        out["end_stop_contact_time_s"] = float(np.count_nonzero(force > 0.0)) * dt
+        out["end_stop_peak_force_N"] = float(force.max())
+        out["rudder_stop_contact_time_s"] = float(np.count_nonzero(torque > 0.0)) * dt
+        out["rudder_stop_peak_torque_Nm"] = float(torque.max())
+    return out
+
+
+def run_warnings(metrics: dict) -> list[str]:
+    """One line for each stop a run touched (empty when it stayed inside its travel)."""
+    lines = []
+    for what, prefix, peak, unit in (
+        ("the rod's end stops", "end_stop", "end_stop_peak_force_N", "N"),
+        ("the rudder's travel stops", "rudder_stop", "rudder_stop_peak_torque_Nm", "N m"),
+    ):
+        contact = metrics.get(f"{prefix}_contact_time_s", 0.0)
+        if contact > 0.0:
+            lines.append(
+                f"the run touched {what} for {contact:.4g} s (peak {metrics[peak]:.4g} {unit}): "
+                "the command or an overshoot leaves the travel"
+            )
+    return lines
 
 
 def _load_window(result) -> tuple[float | None, float]:

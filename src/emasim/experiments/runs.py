@@ -6,7 +6,7 @@ import platform
 from importlib.metadata import version
 
 from .. import __version__
-from ..analysis.report import ANALYSIS_COLUMNS, run_metrics, undefined_metrics
+from ..analysis.report import ANALYSIS_COLUMNS, run_metrics, run_warnings, undefined_metrics
 from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
@@ -57,4 +57,7 @@ def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -
     undefined = undefined_metrics(result.metrics)
     if undefined:
         result.meta["undefined_metrics"] = undefined
+    warnings = run_warnings(result.metrics)
+    if warnings:
+        result.meta["warnings"] = warnings
     return result

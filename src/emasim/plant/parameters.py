@@ -17,11 +17,17 @@ from ..config import MM, RPM, Strict  # noqa: F401 - RPM and Strict are part of 
 from ..interface import MEASUREMENT_NAMES
 from . import actuator as A
 from . import linkage as L
+from .anchorage import AnchorageParams
 from .compliance import ComplianceParams
 from .drivetrain import transmission_ratio
 from .friction import bristle_damping_for_ratio
 from .linkage import LinkageParams
+from .load_motor import LoadMotorParams
 from .motor import torque_constant
+from .ratings import RatingsParams
+from .sensors import S_ALPHA, S_EVERY, S_PERIOD, S_SOURCE, ideal_table
+from .shaft import ShaftParams
+from .stops import EndStopParams
 
 
 class MotorParams(Strict):
@@ -93,8 +99,12 @@ class LoadParams(Strict):
     viscous_Ns_per_m: float = Field(ge=0, le=1e7, description="load-side viscous damping")
 
 
+DERIVED_FROM = {"speed": "angle", "velocity": "position"}  # derived channel -> its source
+
+
 class SensorChannel(Strict):
-    """One measurement channel, in the channel's SI unit (rad/s, rad, m, m/s, A, N, rad)."""
+    """One measurement channel, in the channel's SI unit (rad/s, rad, m, m/s, A, N, rad);
+    sampling and derived channels as in emasim.plant.sensors."""
 
     resolution: float = Field(default=0.0, ge=0, le=1e3, description="quantum, 0 = not quantised")
     noise_std: float = Field(
@@ -103,6 +113,20 @@ class SensorChannel(Strict):
     offset: float = Field(default=0.0, ge=-1e3, le=1e3, description="constant bias")
     gap_width: float = Field(
         default=0.0, ge=0, le=1.0, description="total play read through, 0 = none"
+    )
+    sample_period_s: float = Field(
+        default=0.0,
+        ge=0,
+        le=1.0,
+        description="its own sample period, a whole multiple of the controllers' (0 = theirs)",
+    )
+    derived: bool = Field(
+        default=False,
+        description="speed and velocity only: differentiate the angle (encoder counts) or "
+        "the position reading instead of reading the rate itself",
+    )
+    filter_time_constant_s: float = Field(
+        default=0.0, ge=0, le=10.0, description="tau of a derived channel's lag (0 = none)"
     )
 
 
@@ -118,12 +142,50 @@ class SensorParams(Strict):
     force: SensorChannel = SensorChannel()
     rudder: SensorChannel = SensorChannel()
 
-    def pack(self) -> np.ndarray:
-        """The (N_MEAS x 4) table read by emasim.plant.sensors.measure."""
-        table = np.zeros((len(MEASUREMENT_NAMES), 4))
+    @model_validator(mode="after")
+    def _derived_channels(self):
+        for name in MEASUREMENT_NAMES:
+            if getattr(self, name).derived and name not in DERIVED_FROM:
+                raise ValueError(
+                    f"{name}.derived: only {' and '.join(DERIVED_FROM)} can be derived "
+                    f"(from {' and '.join(DERIVED_FROM.values())})"
+                )
+        return self
+
+    def every(self, name: str, sample_period_s: float) -> int:
+        """How many control ticks of ``sample_period_s`` apart channel ``name`` samples;
+        ValueError unless its sample period is a whole multiple of it."""
+        period = getattr(self, name).sample_period_s
+        if period == 0.0:
+            return 1
+        ratio = period / sample_period_s
+        if ratio < 1 - 1e-9 or abs(ratio - round(ratio)) > 1e-6 * ratio:
+            raise ValueError(
+                f"sensors.{name}.sample_period_s ({period:g} s) must be a whole multiple (>= 1) "
+                f"of solver.sample_period_s ({sample_period_s:g} s)"
+            )
+        return round(ratio)
+
+    def pack(self, sample_period_s: float) -> np.ndarray:
+        """The sensor table read by emasim.plant.sensors.measure, for controllers sampled
+        every ``sample_period_s``."""
+        table = ideal_table()
         for i, name in enumerate(MEASUREMENT_NAMES):
             ch = getattr(self, name)
-            table[i] = (ch.resolution, ch.noise_std, ch.offset, 0.5 * ch.gap_width)
+            every = self.every(name, sample_period_s)
+            period = every * sample_period_s
+            table[i, : S_EVERY + 1] = (
+                ch.resolution,
+                ch.noise_std,
+                ch.offset,
+                0.5 * ch.gap_width,
+                every,
+            )
+            table[i, S_PERIOD] = period
+            if ch.derived:
+                table[i, S_SOURCE] = MEASUREMENT_NAMES.index(DERIVED_FROM[name])
+                tau = ch.filter_time_constant_s
+                table[i, S_ALPHA] = 1.0 if tau == 0.0 else -math.expm1(-period / tau)
         return table
 
 
@@ -169,7 +231,12 @@ class PlantParams(Strict):
     backlash: BacklashParams
     load: LoadParams
     linkage: LinkageParams | None = None
+    end_stops: EndStopParams | None = None
+    ratings: RatingsParams | None = None
     compliance: ComplianceParams | None = None
+    anchorage: AnchorageParams | None = None
+    rudder_shaft: ShaftParams | None = None
+    load_motor: LoadMotorParams | None = None
 
     @model_validator(mode="after")
     def _physically_consistent(self):
@@ -179,6 +246,17 @@ class PlantParams(Strict):
         position)."""
         if self.linkage is not None:
             check_linkage_closes(self.linkage, self.drivetrain.stroke_mm)
+        if self.ratings is not None:
+            if self.ratings.continuous_current_A > self.motor.max_current_A:
+                raise ValueError(
+                    f"ratings.continuous_current_A ({self.ratings.continuous_current_A:g} A) "
+                    f"must not exceed the peak, motor.max_current_A ({self.motor.max_current_A:g})"
+                )
+            if self.ratings.rated_speed_rpm > self.motor.max_speed_rpm:
+                raise ValueError(
+                    f"ratings.rated_speed_rpm ({self.ratings.rated_speed_rpm:g}) must not exceed "
+                    f"motor.max_speed_rpm ({self.motor.max_speed_rpm:g})"
+                )
         try:
             packed = self.pack()
         except (ValueError, ArithmeticError) as err:
@@ -203,7 +281,7 @@ class PlantParams(Strict):
         """
         if self.linkage is None:
             ld = self.load
-            return ld.rod_mass_kg + ld.rudder_inertia_kgm2 / (ld.rudder_arm_mm * MM) ** 2
+            return ld.rod_mass_kg + self.rudder_inertia_kgm2 / (ld.rudder_arm_mm * MM) ** 2
         q = self.linkage.pack()
         ds = 1e-6
         rate = (L.rigid_pose(ds, q) - L.rigid_pose(-ds, q))[: L.N_POS] / (2 * ds)
@@ -215,15 +293,44 @@ class PlantParams(Strict):
             + lk.rocker_inertia_kgm2 * rate[L.TB] ** 2
             + lk.link_mass_kg * (rate[L.XC] ** 2 + rate[L.YC] ** 2)
             + lk.link_inertia_kgm2 * rate[L.TC] ** 2
-            + lk.rudder_inertia_kgm2 * rate[L.TD] ** 2
+            + self.rudder_inertia_kgm2 * rate[L.TD] ** 2
         )
 
     @property
+    def rudder_inertia_kgm2(self) -> float:
+        """The inertia that turns rigidly with the rocker arm (kg m^2): the load's or the
+        linkage's rudder inertia, plus the load motor's rotor unless the shaft's torsion
+        carries it on the disk."""
+        own = (self.load if self.linkage is None else self.linkage).rudder_inertia_kgm2
+        return own + (self.load_motor_inertia_kgm2 if self.rudder_shaft is None else 0.0)
+
+    @property
+    def load_motor_inertia_kgm2(self) -> float:
+        """The load motor's rotor inertia (kg m^2), 0 without one."""
+        return self.load_motor.inertia_kgm2 if self.load_motor is not None else 0.0
+
+    @property
+    def rod_per_rudder_m_per_rad(self) -> float:
+        """d x_L / d theta_r at mid stroke (m/rad): the arm of the lumped stage, or the
+        linkage's rigid kinematics (a 1 um central difference)."""
+        if self.linkage is None:
+            return self.load.rudder_arm_mm * MM
+        ds = 1e-6
+        angles = L.rudder_angle_of_extension(np.array([-ds, ds]), self.linkage.pack())
+        return abs(2 * ds / float(angles[1] - angles[0]))
+
+    @property
     def total_inertia_kgm2(self) -> float:
-        """Motor inertia plus load mass (and the compliance's node) reflected to the motor
-        shaft, J + (M + m_n) K^2 (kg*m^2)."""
+        """Motor inertia plus load mass (with the compliance's node, and the inertia disk and
+        load motor behind the rudder shaft's torsion) reflected to the motor shaft,
+        J + (M + m_n + J_d / r^2) K^2 (kg*m^2), r = rod_per_rudder_m_per_rad."""
         node = self.compliance.node_mass_kg if self.compliance is not None else 0.0
-        return self.motor.inertia_kgm2 + (self.load_mass_kg + node) * self.ratio_m_per_rad**2
+        disk = 0.0
+        if self.rudder_shaft is not None:
+            disk_inertia = self.rudder_shaft.disk_inertia_kgm2 + self.load_motor_inertia_kgm2
+            disk = disk_inertia / self.rod_per_rudder_m_per_rad**2
+        moving = self.load_mass_kg + node + disk
+        return self.motor.inertia_kgm2 + moving * self.ratio_m_per_rad**2
 
     @property
     def torque_constant_Nm_per_A(self) -> float:
@@ -282,7 +389,48 @@ class PlantParams(Strict):
             p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
             p[A.P_ML] = self.linkage.rod_mass_kg
             p[A.P_LINK : A.P_LINK_END] = self.linkage.pack()
+            p[A.P_LINK + L.J_D] = self.rudder_inertia_kgm2
+        self._pack_options(p)
         return p
+
+    def _pack_options(self, p: np.ndarray) -> None:
+        """Pack the optional elements of emasim.plant.stops, .ratings, .anchorage, .shaft and
+        .load_motor (their presence parameters stay 0 when absent)."""
+        if self.end_stops is not None:
+            e = self.end_stops
+            p[A.P_STOPS] = 1.0
+            p[A.P_HALF_STROKE] = 0.5 * self.drivetrain.stroke_mm * MM
+            p[A.P_K_STOP] = e.stiffness_N_per_m
+            p[A.P_C_STOP] = e.damping_Ns_per_m
+            p[A.P_RUDDER_LIMIT] = math.radians(e.rudder_limit_deg)
+            p[A.P_K_RUDDER_STOP] = e.rudder_stiffness_Nm_per_rad
+            p[A.P_C_RUDDER_STOP] = e.rudder_damping_Nms_per_rad
+        if self.ratings is not None:
+            r, i_peak = self.ratings, self.motor.max_current_A
+            p[A.P_RATINGS] = 1.0
+            p[A.P_W_RATED] = r.rated_speed_rpm * RPM
+            p[A.P_I_CONT] = r.continuous_current_A
+            p[A.P_HEAT_CAPACITY] = (i_peak**2 - r.continuous_current_A**2) * r.peak_current_s
+        if self.anchorage is not None:
+            a = self.anchorage
+            p[A.P_ANCHORAGE] = 1.0
+            p[A.P_KA], p[A.P_CA], p[A.P_MH] = (
+                a.stiffness_N_per_m,
+                a.damping_Ns_per_m,
+                a.housing_mass_kg,
+            )
+        if self.rudder_shaft is not None:
+            sh = self.rudder_shaft
+            p[A.P_SHAFT] = 1.0
+            p[A.P_KT], p[A.P_CT] = sh.stiffness_Nm_per_rad, sh.damping_Nms_per_rad
+            p[A.P_JD] = sh.disk_inertia_kgm2 + self.load_motor_inertia_kgm2
+        if self.load_motor is not None:
+            lm = self.load_motor
+            p[A.P_LOAD_MOTOR] = 1.0
+            p[A.P_LM_TAU] = lm.time_constant_s
+            p[A.P_LM_SPRING] = math.degrees(lm.spring_Nm_per_deg)
+            p[A.P_LM_PRELOAD] = lm.preload_Nm
+            p[A.P_LM_MAX] = lm.max_torque_Nm
 
     def initial_state(self) -> np.ndarray:
         """Plant state at rest at mid stroke: currents, speeds zero; the linkage in its rigid
@@ -290,4 +438,6 @@ class PlantParams(Strict):
         x = np.zeros(A.N_STATE)
         if self.linkage is not None:
             x[A.X_LINK : A.X_LINK_END] = L.rigid_pose(0.0, self.linkage.pack())
+        if self.load_motor is not None:  # the standing preload acts from t = 0
+            x[A.X_TLM] = self.load_motor.preload_Nm
         return x

@@ -7,8 +7,11 @@ docs/assumptions in the README). Scenario files start from :data:`PRESETS` and o
 
 import math
 
+from .anchorage import AnchorageParams
+from .compliance import ComplianceParams
 from .contact import ContactParams
 from .linkage import LinkageParams
+from .load_motor import LoadMotorParams
 from .parameters import (
     BacklashParams,
     DrivetrainParams,
@@ -19,6 +22,14 @@ from .parameters import (
     SensorChannel,
     SensorParams,
 )
+from .ratings import RatingsParams
+from .shaft import ShaftParams
+from .stops import EndStopParams
+
+
+def damping_for_ratio(zeta: float, stiffness: float, mass: float) -> float:
+    """c = 2 zeta sqrt(k m): the damping that gives a mass m on a spring k the ratio zeta."""
+    return 2.0 * zeta * math.sqrt(stiffness * mass)
 
 
 def paper_motor() -> MotorParams:
@@ -138,15 +149,51 @@ def reference_linkage(clearance_mm: float = 0.01) -> LinkageParams:
     )
 
 
+STOP_DAMPING_RATIO = 0.2  # ours: a hard stop with an elastomer face rebounds at e = 0.53
+
+
+def sea805_end_stops() -> EndStopParams:
+    """The stops at the ends of the SEA805's 250 mm stroke, and the rudder's travel limits.
+
+    Rod stops (ours): as stiff as the screw's axial path, 100 N/um; damped at zeta = 0.2 on
+    the motor's inertia seen at the rod, J / K^2 = 1665 kg, which dominates what hits the stop.
+    Rudder stops (ours): at 35 deg, 5 deg beyond the 30 deg that the stroke gives, so that the
+    rod's stops act first; 1e6 N m/rad, damped at zeta = 0.2 on the drive's inertia seen at the
+    rudder through the 238.7 mm arm (95 kg m^2).
+    """
+    motor, drivetrain, rudder = paper_motor(), sea805_drivetrain(), lumped_rudder()
+    k = drivetrain.screw_lead_mm * 1e-3 / (2.0 * math.pi * drivetrain.gear_ratio)
+    motor_mass = motor.inertia_kgm2 / k**2
+    arm = rudder.rudder_arm_mm * 1e-3
+    return EndStopParams(
+        stiffness_N_per_m=1.0e8,
+        damping_Ns_per_m=damping_for_ratio(STOP_DAMPING_RATIO, 1.0e8, motor_mass),
+        rudder_limit_deg=35.0,
+        rudder_stiffness_Nm_per_rad=1.0e6,
+        rudder_damping_Nms_per_rad=damping_for_ratio(
+            STOP_DAMPING_RATIO, 1.0e6, motor_mass * arm**2
+        ),
+    )
+
+
 def sea805() -> PlantParams:
-    """The paper's motor on the SEA805 drive train, LuGre friction, 0.1 mm backlash, rudder."""
+    """The paper's motor on the SEA805 drive train, LuGre friction, 0.1 mm backlash, rudder,
+    and the end stops of its stroke."""
     return PlantParams(
         motor=paper_motor(),
         drivetrain=sea805_drivetrain(),
         friction=motor_lugre_friction(),
         backlash=drivetrain_backlash(),
         load=lumped_rudder(),
+        end_stops=sea805_end_stops(),
     )
+
+
+def sea805_stand() -> PlantParams:
+    """sea805 on a motor test stand: the motor and its load with no travel limit (no end
+    stops), for the speed-loop experiments (paper Figs. 5-6), whose rod would run past the
+    stroke."""
+    return sea805().model_copy(update={"end_stops": None})
 
 
 def sea805_linkage(clearance_mm: float = 0.01) -> PlantParams:
@@ -154,7 +201,72 @@ def sea805_linkage(clearance_mm: float = 0.01) -> PlantParams:
     return sea805().model_copy(update={"linkage": reference_linkage(clearance_mm)})
 
 
-PRESETS = {"sea805": sea805, "sea805-linkage": sea805_linkage}
+def sea805_ratings() -> RatingsParams:
+    """The SEA805's rated limits: 240 mm/s at the 8 mm lead is 1800 rpm (paper section 3);
+    ours: a continuous current of 20 A, a third of the 58 A peak (a servo motor's usual 3:1),
+    the peak for 2 s from cold."""
+    return RatingsParams(rated_speed_rpm=1800.0, continuous_current_A=20.0, peak_current_s=2.0)
+
+
+BENCH_DISK_INERTIA_KGM2 = 1.45  # ours: the inertia disk, of the 1.5 kg m^2 rudder stage
+
+
+def sea805_bench(clearance_mm: float = 0.01) -> PlantParams:
+    """The virtual bench made real: sea805-linkage with the drive's rated limits, the
+    compliance of the screw and the anchorage, the rudder shaft's torsion and the load motor.
+
+    Every number is ours (the paper names flexibility as the bench's main cause of
+    oscillation, but gives no figure):
+
+    * rated limits: :func:`sea805_ratings`; the speed command limit falls to the rated 1800 rpm;
+    * screw/nut axial stiffness in series with the gap: 150 N/um, a roller screw's nut and
+      its thrust bearings in series (each several hundred N/um); the nut body 1 kg; 2 % of
+      critical damping on the rod's 3 kg;
+    * anchorage: 60 N/um, the attachment lugs, spherical bearings and backup structure of an
+      actuator of this force class; the body (housing, stator, bearings) 12 kg; 5 % of
+      critical damping;
+    * rudder shaft: 2e4 N m/rad, a 200 N m torque sensor's shaft and couplings, between the
+      rocker arm (0.05 kg m^2 of the rudder stage) and the 1.45 kg m^2 inertia disk: 18.7 Hz
+      with the disk alone; 2 % of critical damping;
+    * load motor: a 0.01 kg m^2 rotor, a 200 Hz torque loop, 500 N m rated, no preload.
+    """
+    base = sea805_linkage(clearance_mm)
+    linkage = base.linkage.model_copy(
+        update={"rudder_inertia_kgm2": base.linkage.rudder_inertia_kgm2 - BENCH_DISK_INERTIA_KGM2}
+    )
+    return base.model_copy(
+        update={
+            "motor": base.motor.model_copy(update={"max_speed_rpm": 1800.0}),
+            "linkage": linkage,
+            "ratings": sea805_ratings(),
+            "compliance": ComplianceParams(
+                stiffness_N_per_m=1.5e8,
+                damping_Ns_per_m=damping_for_ratio(0.02, 1.5e8, 3.0),
+                node_mass_kg=1.0,
+            ),
+            "anchorage": AnchorageParams(
+                stiffness_N_per_m=6.0e7,
+                damping_Ns_per_m=damping_for_ratio(0.05, 6.0e7, 12.0),
+                housing_mass_kg=12.0,
+            ),
+            "rudder_shaft": ShaftParams(
+                stiffness_Nm_per_rad=2.0e4,
+                damping_Nms_per_rad=damping_for_ratio(0.02, 2.0e4, BENCH_DISK_INERTIA_KGM2),
+                disk_inertia_kgm2=BENCH_DISK_INERTIA_KGM2,
+            ),
+            "load_motor": LoadMotorParams(
+                inertia_kgm2=0.01, bandwidth_Hz=200.0, max_torque_Nm=500.0
+            ),
+        }
+    )
+
+
+PRESETS = {
+    "sea805": sea805,
+    "sea805-stand": sea805_stand,
+    "sea805-linkage": sea805_linkage,
+    "sea805-bench": sea805_bench,
+}
 
 
 def bench_sensors() -> SensorParams:

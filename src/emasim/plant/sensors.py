@@ -1,13 +1,25 @@
-"""Sensors: what the controllers see of the plant, sampled at each control tick.
+"""Sensors: what the controllers see of the plant, sampled and held at each channel's rate.
 
 Each measurement channel (layout in :mod:`emasim.interface`) reads its true value v and reports
 
     y = quantise(v + offset + noise_std * N(0, 1), resolution)
 
 optionally through a gap of half-width b (the play operator, for a position read across
-backlash). quantise(v, q) = q * round(v / q); q = 0 means no quantisation. Sampling and
-zero-order hold come from the tick itself. Noise draws come from numba's generator, seeded once
-per run, so a run is reproducible from its seed.
+backlash). quantise(v, q) = q * round(v / q); q = 0 means no quantisation. A channel samples
+every n-th control tick (its own sample period n Ts) and holds its reading in between.
+
+A **derived** channel (the motor speed from the encoder's angle, the rod velocity from its
+position) differentiates its source channel's readings over its own sample period T and
+filters the difference through a first-order lag of time constant tau, discretised exactly:
+
+    d(k) = (y_src(k) - y_src(k-1)) / T,   f(k) = f(k-1) + (1 - exp(-T / tau)) (d(k) - f(k-1))
+
+so an encoder of resolution q gives speeds in steps of q / T before the filter. Its own
+offset, noise and quantum then apply to f. Noise draws come from numba's generator, seeded
+once per run, so a run is reproducible from its seed.
+
+The rod's displacement sensor sits on the actuator body, so it reads the rod's extension
+x_L - x_h (emasim.plant.anchorage).
 """
 
 import numpy as np
@@ -32,6 +44,27 @@ S_RESOLUTION = 0
 S_NOISE = 1
 S_OFFSET = 2
 S_HALF_GAP = 3
+S_EVERY = 4  # samples every n-th tick
+S_SOURCE = 5  # the channel a derived channel differentiates, -1 for none
+S_PERIOD = 6  # the channel's sample period T (s)
+S_ALPHA = 7  # the filter's 1 - exp(-T / tau) (1: no filter)
+N_SENSOR_COLUMNS = 8
+
+# columns of the sensors' state (emasim.sim.core.SensorArrays.state)
+ST_GAP = 0  # the play operator's output
+ST_HELD = 1  # the reading held between samples
+ST_SOURCE = 2  # a derived channel: its source's reading at its previous sample
+ST_FILTER = 3  # a derived channel: the filter's output
+N_SENSOR_STATE = 4
+
+
+def ideal_table() -> np.ndarray:
+    """The sensor table of ideal channels, every one sampled at every tick."""
+    table = np.zeros((N_MEAS, N_SENSOR_COLUMNS))
+    table[:, S_EVERY] = 1.0
+    table[:, S_SOURCE] = -1.0
+    table[:, S_ALPHA] = 1.0
+    return table
 
 
 @njit(cache=True, error_model="numpy")
@@ -39,8 +72,7 @@ def true_values(x, p, values):
     """Write the noiseless value of every measurement channel of state x into ``values``."""
     values[M_SPEED] = x[A.X_WM]
     values[M_ANGLE] = x[A.X_THETA]
-    values[M_POSITION] = x[A.X_XL]
-    values[M_VELOCITY] = x[A.X_VL]
+    values[M_POSITION], values[M_VELOCITY] = A.rod_extension(x)
     values[M_ID] = x[A.X_ID]
     values[M_IQ] = x[A.X_IQ]
     values[M_FORCE] = A.drivetrain_force(x, p)
@@ -65,16 +97,52 @@ def read_sensor(value, resolution, noise_std, offset):
 
 
 @njit(cache=True, error_model="numpy")
-def measure(x, p, table, gap_state, meas):
-    """Fill ``meas`` with every channel's reading; ``gap_state`` holds each play operator's output.
+def _sample(i, v, table, state):
+    """Channel i's reading of v: through its play operator, then offset, noise, quantum."""
+    if table[i, S_HALF_GAP] > 0.0:
+        v = play_operator(v, state[i, ST_GAP], table[i, S_HALF_GAP], 1.0)
+        state[i, ST_GAP] = v
+    reading = read_sensor(v, table[i, S_RESOLUTION], table[i, S_NOISE], table[i, S_OFFSET])
+    state[i, ST_HELD] = reading
+    return reading
 
-    table is the (N_MEAS x 4) sensor parameter table; a channel with S_HALF_GAP > 0 is read
-    through the play operator (its state must start at the channel's initial true value).
+
+@njit(cache=True, error_model="numpy")
+def measure(x, p, table, state, meas, tick):
+    """Fill ``meas`` with every channel's reading at control tick ``tick`` (module docstring).
+
+    table is the (N_MEAS x N_SENSOR_COLUMNS) sensor table, state the (N_MEAS x
+    N_SENSOR_STATE) sensors' state (initial_state). A channel not due at this tick gives its
+    held reading. Direct channels are read first, then the derived ones from their sources'
+    readings of this tick.
     """
     true_values(x, p, meas)
+    for derived in (False, True):
+        for i in range(N_MEAS):
+            if (table[i, S_SOURCE] >= 0.0) != derived:
+                continue
+            if tick % int(table[i, S_EVERY]) != 0:
+                meas[i] = state[i, ST_HELD]
+                continue
+            v = meas[i]
+            if derived:
+                source = meas[int(table[i, S_SOURCE])]
+                rate = (source - state[i, ST_SOURCE]) / table[i, S_PERIOD]
+                state[i, ST_SOURCE] = source
+                v = state[i, ST_FILTER] + table[i, S_ALPHA] * (rate - state[i, ST_FILTER])
+                state[i, ST_FILTER] = v
+            meas[i] = _sample(i, v, table, state)
+
+
+def initial_state(x0: np.ndarray, p: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """The sensors' state at the start of a run: every play operator and held reading at its
+    channel's true value; a derived channel's source at its true value and its filter at the
+    derived quantity's true value (a plant at rest reads zero rate)."""
+    values = np.zeros(N_MEAS)
+    true_values(x0, p, values)
+    state = np.zeros((N_MEAS, N_SENSOR_STATE))
+    state[:, ST_GAP] = state[:, ST_HELD] = state[:, ST_FILTER] = values
     for i in range(N_MEAS):
-        v = meas[i]
-        if table[i, S_HALF_GAP] > 0.0:
-            v = play_operator(v, gap_state[i], table[i, S_HALF_GAP], 1.0)
-            gap_state[i] = v
-        meas[i] = read_sensor(v, table[i, S_RESOLUTION], table[i, S_NOISE], table[i, S_OFFSET])
+        if table[i, S_SOURCE] >= 0.0:
+            state[i, ST_SOURCE] = values[int(table[i, S_SOURCE])]
+    return state

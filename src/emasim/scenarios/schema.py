@@ -10,7 +10,7 @@ of a :class:`emasim.sim.setup.Setup`.
 
 import difflib
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -18,17 +18,22 @@ from pydantic import Field, field_validator, model_validator
 from ..control.current import CurrentPI
 from ..control.pid import SpeedPI
 from ..control.registry import CASCADES, PositionController, SpeedController
+from ..interface import MEASUREMENT_NAMES as MEASUREMENT_CHANNELS
 from ..output import slug
 from ..plant import actuator as A
 from ..plant.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..signals import ZERO, Table, Term, combine, encode, signal_value, signal_values
+from ..signals import Table, Term, encode, lookup_table, signal_value, signal_values
 from ..sim.trace import TRACE_COLUMNS
 
 if TYPE_CHECKING:
     from ..sim.setup import Setup
 
+# the sections every plant has: a plant table holding all of them is whole (_from_preset)
+PLANT_SECTIONS = tuple(
+    name for name, info in PlantParams.model_fields.items() if info.is_required()
+)
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
 MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
@@ -147,12 +152,7 @@ class Reference(Strict):
             return encode(self.position_mm, MM)
         if plant.linkage is None:
             return encode(self.rudder_deg, math.radians(1.0) * plant.load.rudder_arm_mm * MM)
-        q = plant.linkage.pack()
-        half_stroke = 0.5 * plant.drivetrain.stroke_mm * MM
-        s_grid = np.linspace(-half_stroke, half_stroke, 501)
-        angle_grid = rudder_angle_of_extension(s_grid, q)
-        if angle_grid[-1] < angle_grid[0]:  # monotonic (checked by PlantParams): make it rise
-            s_grid, angle_grid = s_grid[::-1], angle_grid[::-1]
+        angle_grid, s_grid = rudder_rod_grid(plant)
         angle = encode(self.rudder_deg, math.radians(1.0))
         times = np.arange(0.0, duration_s + 1e-3, 1e-3)
         rod = np.interp([signal_value(angle, t) for t in times], angle_grid, s_grid)
@@ -166,21 +166,46 @@ class Load(Strict):
     rod_force_N: list[Term] = []
     rudder_torque_Nm: list[Term] = []
 
-    def encode(self, plant: PlantParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def encode(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(motor torque in N*m, rod force in N, rudder-shaft torque in N*m) signals.
 
         A rudder torque is a load: positive opposes positive deflection. With the linkage it
-        acts on the rudder shaft; with the lumped stage it reaches the rod as torque / arm.
+        acts on the rudder shaft, with the lumped stage it reaches the rod as torque / arm,
+        and with the load motor it is the load motor's command (emasim.plant.actuator).
         """
-        if plant.linkage is not None:
-            return (
-                encode(self.motor_torque_Nm),
-                encode(self.rod_force_N),
-                encode(self.rudder_torque_Nm),
-            )
-        arm_m = plant.load.rudder_arm_mm * MM
-        rod = combine(encode(self.rod_force_N), encode(self.rudder_torque_Nm, 1.0 / arm_m))
-        return encode(self.motor_torque_Nm), rod, ZERO
+        return (
+            encode(self.motor_torque_Nm),
+            encode(self.rod_force_N),
+            encode(self.rudder_torque_Nm),
+        )
+
+
+class Loop(Strict):
+    """How the loops are implemented: the controllers' computation delay, and the sensor the
+    position loop closes on (the rod's displacement sensor, or the rudder encoder read as
+    the rod position the rigid kinematics give for its angle)."""
+
+    computation_delay_s: float = Field(
+        default=0.0,
+        ge=0,
+        le=0.01,
+        description="from sampling to applying the voltage: a whole number of solver.step_s, "
+        "at most solver.sample_period_s",
+    )
+    position_feedback: Literal["rod", "rudder"] = "rod"
+
+
+def rudder_rod_grid(plant: PlantParams) -> tuple[np.ndarray, np.ndarray]:
+    """(rudder angles in rad, rising; the rod positions in m that give them) at 501 points
+    over the stroke: the lumped arm, or the linkage's rigid inverse kinematics."""
+    half_stroke = 0.5 * plant.drivetrain.stroke_mm * MM
+    s_grid = np.linspace(-half_stroke, half_stroke, 501)
+    if plant.linkage is None:
+        return s_grid / (plant.load.rudder_arm_mm * MM), s_grid
+    angle_grid = rudder_angle_of_extension(s_grid, plant.linkage.pack())
+    if angle_grid[-1] < angle_grid[0]:  # monotonic (checked by PlantParams): make it rise
+        s_grid, angle_grid = s_grid[::-1], angle_grid[::-1]
+    return angle_grid, s_grid
 
 
 class Controllers(Strict):
@@ -206,12 +231,18 @@ def _merge(base: dict, override: dict) -> dict:
     return out
 
 
-def _from_preset(section, presets: dict, what: str) -> dict:
-    """A section given as a preset name, or a table with an optional ``preset`` key + overrides."""
+def _from_preset(section, presets: dict, what: str, complete: tuple[str, ...] = ()) -> dict:
+    """A section given as a preset name, or a table with an optional ``preset`` key + overrides.
+
+    A table without ``preset`` that names every one of ``complete`` is whole, as a saved
+    scenario writes it, and stands alone: merging it onto the first preset would add that
+    preset's optional elements (the end stops) to a plant that had none."""
     if isinstance(section, str):
         section = {"preset": section}
     if not isinstance(section, dict):
         return section  # let pydantic report the wrong type
+    if complete and "preset" not in section and all(key in section for key in complete):
+        return section
     section = dict(section)
     name = section.pop("preset", next(iter(presets)))
     if not isinstance(name, str) or name not in presets:
@@ -280,6 +311,7 @@ class Scenario(Strict):
     plant: PlantParams
     sensors: SensorParams = SensorParams()
     controllers: Controllers = Controllers()
+    loop: Loop = Loop()
     reference: Reference
     load: Load = Load()
     compare: list[Variant] = []
@@ -292,7 +324,9 @@ class Scenario(Strict):
     def _resolve_presets(cls, data):
         if isinstance(data, dict):
             data = dict(data)
-            data["plant"] = _from_preset(data.get("plant", {}), PRESETS, "plant")
+            data["plant"] = _from_preset(
+                data.get("plant", {}), PRESETS, "plant", complete=PLANT_SECTIONS
+            )
             data["sensors"] = _from_preset(data.get("sensors", {}), SENSOR_PRESETS, "sensors")
             data["controllers"] = _from_cascade(data.get("controllers", {}), data)
             if isinstance(data.get("compare"), list):
@@ -335,7 +369,28 @@ class Scenario(Strict):
                 f"{MAX_RECORDED_ROWS:.0e} (raise solver.record_period_s)"
             )
         check_reference(self.reference, self.plant, self.duration_s)
+        self._check_loop()
+        for name in MEASUREMENT_CHANNELS:
+            self.sensors.every(name, self.solver.sample_period_s)
         return self
+
+    def _check_loop(self) -> None:
+        delay, step = self.loop.computation_delay_s, self.solver.step_s
+        if delay > self.solver.sample_period_s * (1 + 1e-9):
+            raise ValueError(
+                f"loop.computation_delay_s ({delay:g} s) must not exceed solver.sample_period_s "
+                f"({self.solver.sample_period_s:g} s)"
+            )
+        if abs(delay / step - round(delay / step)) > 1e-6 * max(1.0, delay / step):
+            raise ValueError(
+                f"loop.computation_delay_s ({delay:g} s) must be a whole number of "
+                f"solver.step_s ({step:g} s)"
+            )
+        if self.loop.position_feedback == "rudder" and self.reference.loop != "position":
+            raise ValueError(
+                "loop.position_feedback = 'rudder' needs a position loop (a position_mm or "
+                "rudder_deg reference)"
+            )
 
     def variants(self) -> list[tuple[str, "Scenario"]]:
         """(label, single-run scenario) of every comparison entry; just this one if none."""
@@ -357,11 +412,12 @@ class Scenario(Strict):
     def setup(self) -> "Setup":
         """Compile this scenario into the arrays the engine runs (the first call loads the
         compiled core: checking a scenario does not)."""
+        from ..sim.engine import FEEDBACK_ROD, FEEDBACK_RUDDER
         from ..sim.setup import Setup, plant_facts
 
         facts = plant_facts(self.plant)
         ts = self.solver.sample_period_s
-        motor_load, rod_load, rudder_load = self.load.encode(self.plant)
+        motor_load, rod_load, rudder_load = self.load.encode()
         c = self.controllers
         return Setup(
             plant=self.plant.pack(),
@@ -375,7 +431,7 @@ class Scenario(Strict):
             speed=c.speed.build(facts, ts),
             position=c.position.build(facts, ts) if c.position is not None else None,
             current=c.current.build(facts, ts),
-            sensors=self.sensors.pack(),
+            sensors=self.sensors.pack(ts),
             record_every=self.solver.record_every,
             seed=self.seed,
             x0=self.plant.initial_state(),
@@ -384,6 +440,9 @@ class Scenario(Strict):
             record_signals=(
                 None if self.solver.record_signals is None else tuple(self.solver.record_signals)
             ),
+            delay_substeps=round(self.loop.computation_delay_s / self.solver.step_s),
+            feedback=FEEDBACK_RUDDER if self.loop.position_feedback == "rudder" else FEEDBACK_ROD,
+            rudder_to_rod=lookup_table(*rudder_rod_grid(self.plant)),
         )
 
 

@@ -4,14 +4,17 @@ One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
 
 * :class:`PlantArrays`: the packed SI parameters and every state's divergence bound;
 * :class:`SignalArrays`: the reference and the three loads, encoded (emasim.signals);
-* :class:`SensorArrays`: the sensor table and the play operators' states;
+* :class:`SensorArrays`: the sensor table, the sensors' state, and the map from the rudder
+  encoder's angle to the rod position it stands for (rudder feedback);
+* the **drive**'s state: its I^2 t heat, the voltage applied before the computation delay,
+  the current limit in force and the limits that acted (``D_*`` below);
 * the **slots** position, speed and current: each a controller law with the library's
   signature (:data:`emasim.control.slot.CONTROLLER_SIG`), called through a function pointer,
   and its ``(params, state)`` arrays. The three laws are arguments of their own (numba types
   a law given inside a tuple through an experimental path, with a warning at every call);
   their arrays travel as one tuple;
-* :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed and
-  which loops close;
+* :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed,
+  which loops close, the computation delay and which sensor the position loop closes on;
 * :class:`TraceArrays`: the recorded columns, which the loop fills every ``record_every``
   ticks;
 * :class:`Workspace`: the scratch arrays of the RK4 stages and of the control tick, made by
@@ -102,21 +105,38 @@ class SignalArrays(NamedTuple):
 
 
 class SensorArrays(NamedTuple):
-    """The (N_MEAS x 4) sensor table and the state of each channel's play operator."""
+    """The sensor table and state (emasim.plant.sensors), and ``rudder_to_rod``: an encoded
+    table (emasim.signals) from a rudder angle (rad, as its "time") to the rod position (m)
+    the rigid kinematics give, read when the position loop closes on the rudder encoder."""
 
     table: np.ndarray
-    gap: np.ndarray
+    state: np.ndarray
+    rudder_to_rod: np.ndarray
 
 
 class Timing(NamedTuple):
     """When things happen: Ts (s), RK4 sub-steps per tick, ticks per recorded row, the seed of
-    the sensor noise, and the loop structure (engine.LOOP_*)."""
+    the sensor noise, the loop structure (engine.LOOP_*), the computation delay in sub-steps
+    (the voltage computed at a tick is applied that many sub-steps later, at most one tick)
+    and the position loop's feedback (engine.FEEDBACK_*)."""
 
     sample_period_s: float
     substeps: int
     record_every: int
     seed: int
     loop: int
+    delay_substeps: int
+    feedback: int
+
+
+# the drive's state (Core.drive), kept from tick to tick
+D_HEAT = 0  # I^2 t heat above the continuous rating (A^2 s; emasim.plant.ratings)
+D_UD = 1  # the voltage applied until the delayed command takes over (V)
+D_UQ = 2
+D_CURRENT_LIMIT = 3  # the current limit in force at the last tick (A)
+D_FLAGS = 4  # the limits that acted at the last tick (emasim.interface.LIMIT_* bits)
+D_FOLDED = 5  # 1 while the I^2 t protection holds the current at its continuous rating
+N_DRIVE = 6
 
 
 class Workspace(NamedTuple):
@@ -149,6 +169,7 @@ class Core(NamedTuple):
     plant: PlantArrays
     signals: SignalArrays
     sensors: SensorArrays
+    drive: np.ndarray
     position_law: object  # the slots' compiled laws
     speed_law: object
     current_law: object
@@ -159,8 +180,8 @@ class Core(NamedTuple):
 
 PLANT_TYPE = types.NamedUniTuple(F8A, 2, PlantArrays)
 SIGNALS_TYPE = types.NamedUniTuple(F8A, 4, SignalArrays)
-SENSORS_TYPE = types.NamedTuple((F8A2, F8A), SensorArrays)
-TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8), Timing)
+SENSORS_TYPE = types.NamedTuple((F8A2, F8A2, F8A), SensorArrays)
+TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8, I8, I8), Timing)
 RK4_TYPE = types.UniTuple(F8A, 5)
 TRACE_TYPE = types.NamedTuple((F8A2, types.int64[::1], F8A), TraceArrays)
 WORKSPACE_TYPE = types.NamedTuple((RK4_TYPE, F8A2, F8A, F8A, F8A), Workspace)

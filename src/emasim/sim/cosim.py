@@ -4,8 +4,10 @@ The paper coupled SIMULINK (drive and controllers) and ADAMS (the mechanism) thi
 communication step Tc:
 
 1. the drive (the compiled engine, rod alone as its load) runs over [t, t + Tc] with the rod
-   force the mechanism returned at t held;
-2. the mechanism (emasim.sim.mechanism) runs over the same interval with its rod driven at the
+   force the mechanism returned at t held, and the mechanism's states at t held in its state
+   (its rudder encoder reads them);
+2. the mechanism (emasim.sim.mechanism: the linkage, and the rudder shaft's disk and the load
+   motor when the plant has them) runs over the same interval with its rod driven at the
    drive's mean rod velocity, (s(t + Tc) - s(t)) / Tc, so both sides agree on the rod
    position at every communication point;
 3. the mechanism returns the rudder angle and the rod's load force.
@@ -27,9 +29,9 @@ import numpy as np
 from ..errors import InputError
 from ..plant import actuator as A
 from ..plant import linkage as L
-from ..signals import Constant, encode, signal_value
+from ..signals import ZERO, Constant, encode, signal_value
 from .engine import EngineRun
-from .mechanism import advance
+from .mechanism import advance_rudder_side
 
 ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
 
@@ -37,9 +39,11 @@ ROD_FORCE_VALUE = 3  # index of the held value in a one-term constant signal
 def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     """Run a scenario whose plant has the linkage as a drive/mechanism co-simulation.
 
-    Returns the drive's Result with the rudder angle and the linkage states replaced by the
-    mechanism's, held between communication points. ``trust_fmu`` allows the scenario's
-    ``solver.mechanism_fmu`` to be loaded (see :func:`check_fmu_trust`).
+    The drive runs the whole plant state with the rudder side held (emasim.plant.actuator
+    LOAD_HELD): the mechanism's states, written into it at every exchange, are what the drive's
+    sensors read (a rudder encoder included) and what its trace records, held between
+    communication points. ``trust_fmu`` allows the scenario's ``solver.mechanism_fmu`` to be
+    loaded (see :func:`check_fmu_trust`); an FMU mechanism is the linkage alone.
     """
     check_fmu_trust(scenario, trust_fmu)
     plant = scenario.plant
@@ -47,7 +51,12 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
         raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
     if scenario.load.rod_force_N:
         raise InputError("co-simulation takes motor_torque_Nm and rudder_torque_Nm loads only")
-    linked = scenario.setup().with_(record_signals=None)  # the mechanism fills every column
+    if scenario.solver.mechanism_fmu is not None and (plant.rudder_shaft or plant.load_motor):
+        raise InputError(
+            "solver.mechanism_fmu: an FMU mechanism is the linkage alone; remove "
+            "plant.rudder_shaft and plant.load_motor, or use the built-in mechanism"
+        )
+    linked = scenario.setup().with_(record_signals=None)  # every column, as the run had
     ts = linked.sample_period_s
     ticks = round(communication_step_s / ts)
     if ticks < 1 or abs(ticks * ts - communication_step_s) > 1e-9 * communication_step_s:
@@ -55,49 +64,44 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
             f"solver.communication_step_s ({communication_step_s:g} s) must be a whole multiple "
             f"of solver.sample_period_s ({ts:g} s)"
         )
-    drive_plant = plant.model_copy(update={"linkage": None})
     rod_force = encode([Constant(value=0.0)])
     drive = EngineRun(
         linked.with_(
-            plant=_rod_only(drive_plant.pack(), plant.linkage.rod_mass_kg),
+            plant=_rudder_side_held(linked.plant),
             rod_load=rod_force,
-            x0=drive_plant.initial_state(),
-        ),
-        keep_elements=("linkage",),
+            rudder_load=ZERO,  # the mechanism carries it
+        )
     )
-    q = plant.linkage.pack()
-    y = linked.x0[A.X_LINK : A.X_LINK_END].copy()
+    mechanism = linked.x0.copy()  # its rudder side (rows X_MECHANISM..) is the mechanism's
+    y = mechanism[A.X_LINK : A.X_LINK_END]  # a view: what an FMU mechanism reads and writes
     hinges = np.zeros((L.N_HINGES, 2))
     n = linked.n_ticks
-    held = np.zeros((n + 1, L.N_LINK))
     start = time.perf_counter()
     fmu = _mechanism_fmu(scenario, linked.step_s, drive.run.x[A.X_XL], y)  # None: built in
     try:
         for k0 in range(0, n, ticks):
             k1 = min(n, k0 + ticks)
+            drive.run.x[A.X_MECHANISM :] = mechanism[A.X_MECHANISM :]  # held over this step
             s0 = drive.run.x[A.X_XL]
             drive.advance(k1)
-            held[k0:k1] = y  # what the drive saw of the mechanism over this step
             s1 = drive.run.x[A.X_XL]
             span = (k1 - k0) * ts
+            v = (s1 - s0) / span
             substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides
             # the rudder load (opposing positive deflection) held at the step's midpoint
             load = signal_value(linked.rudder_load, (k0 * ts) + 0.5 * span)
             if fmu is None:
-                axial = advance(y, s0, (s1 - s0) / span, span, substeps, -load, q, hinges)
+                axial = advance_rudder_side(
+                    mechanism, s0, v, span, substeps, load, linked.plant, hinges
+                )
             else:
-                axial = fmu.advance(y, k0 * ts, s0, (s1 - s0) / span, span, load)
+                axial = fmu.advance(y, k0 * ts, s0, v, span, load)
             rod_force[ROD_FORCE_VALUE] = -axial  # the rod load opposes the linkage's push
     finally:
         if fmu is not None:
             fmu.close()
-    result = drive.result()  # its linkage columns are filled from the mechanism below
+    result = drive.result()
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
-    rows = np.arange(result.data.shape[0]) * linked.record_every
-    for i, name in enumerate(L.LINK_STATE_NAMES):
-        result.data[:, result.columns.index(name)] = held[rows, i]
-    result.data[:, result.columns.index("rudder_angle_rad")] = held[rows, L.TD]
-    _mechanism_outputs(result, held[rows], linked.plant)
     result.meta["communication_step_s"] = communication_step_s
     return result
 
@@ -125,18 +129,9 @@ def _mechanism_fmu(scenario, step_s: float, rod_position_m: float, y: np.ndarray
     return fmu
 
 
-def _mechanism_outputs(result, linkage_states: np.ndarray, packed: np.ndarray) -> None:
-    """Fill the rod force and hinge columns from the mechanism states held at each row."""
-    first = result.columns.index(L.LINKAGE.outputs[0].name)
-    x = np.zeros(A.N_STATE)
-    position, velocity = result["actuator_position_m"], result["actuator_velocity_m_s"]
-    for i, y in enumerate(linkage_states):
-        x[A.X_XL], x[A.X_VL], x[A.X_LINK : A.X_LINK_END] = position[i], velocity[i], y
-        A.linkage_outputs(x, packed, result.data[i, first : first + A.N_LINKAGE_OUTPUTS])
-
-
-def _rod_only(packed: np.ndarray, rod_mass_kg: float) -> np.ndarray:
-    """The drive's parameters with the rod alone as its load (the mechanism carries the rest)."""
+def _rudder_side_held(packed: np.ndarray) -> np.ndarray:
+    """The drive's parameters: those of the coupled plant (the rod alone as its load), with the
+    rudder side held (the mechanism carries it)."""
     packed = packed.copy()
-    packed[A.P_ML] = rod_mass_kg
+    packed[A.P_LOAD_MODEL] = A.LOAD_HELD
     return packed

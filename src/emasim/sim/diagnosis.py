@@ -6,10 +6,12 @@ The checks, in order:
    while omega h < 2 sqrt(2) (about 2.83) and on a decaying mode while lambda h < 2.78. The
    plant's fastest modes are the backlash contact, omega = sqrt(K_b / m_r) with m_r the
    reduced mass of the motor (J / K^2 at the nut) and the load; the bristles of the LuGre
-   friction, omega = sqrt(sigma0 / J); and the stator, lambda = R / min(Ld, Lq).
+   friction, omega = sqrt(sigma0 / J); the stator, lambda = R / min(Ld, Lq); and, when the
+   plant has them, the rod's end stops on the rod, sqrt(k / m_rod), the anchorage,
+   sqrt(k_a / m_h), the rudder shaft, sqrt(k_t / J_d), and the load motor's torque loop, 1/tau.
 2. **A load beyond the drive.** The peak external load seen at the rod (rod force, motor
-   torque / K, rudder torque through the linkage's lever at mid stroke, or the lumped arm,
-   already folded into the rod force) against the stall force of the drive,
+   torque / K, rudder torque through the linkage's lever at mid stroke or the lumped arm)
+   against the stall force of the drive,
    F_stall = kt I_max eta / K, kt = 1.5 np psi_f.
 3. **A limit that was hit.** The state that left its bound is a speed, a current or the rod
    position: it ran beyond what the drive allows (the bounds are far outside any real motion).
@@ -44,6 +46,16 @@ def fastest_modes(plant: np.ndarray) -> list[tuple[str, float, float]]:
         modes.append(("the LuGre bristle stiffness", omega_bristle, RK4_OSCILLATOR_LIMIT))
     stator = plant[A.P_RS] / min(plant[A.P_LD], plant[A.P_LQ])
     modes.append(("the stator time constant L/R", stator, RK4_DECAY_LIMIT))
+    options = (
+        (A.P_STOPS, "the rod's end stops", A.P_K_STOP, A.P_ML),
+        (A.P_ANCHORAGE, "the anchorage", A.P_KA, A.P_MH),
+        (A.P_SHAFT, "the rudder shaft's torsion", A.P_KT, A.P_JD),
+    )
+    for present, name, stiffness, mass in options:
+        if plant[present] != 0.0:
+            modes.append((name, math.sqrt(plant[stiffness] / plant[mass]), RK4_OSCILLATOR_LIMIT))
+    if plant[A.P_LOAD_MOTOR] != 0.0:
+        modes.append(("the load motor's torque loop", 1.0 / plant[A.P_LM_TAU], RK4_DECAY_LIMIT))
     return [(name, rate, limit / rate) for name, rate, limit in modes]
 
 
@@ -51,7 +63,7 @@ def peak_rod_load_N(setup) -> float:
     """The largest |external load| seen at the rod over the run (N)."""
     plant = setup.plant
     times = np.linspace(0.0, setup.duration_s, LOAD_SAMPLES)
-    lever = 0.0
+    lever = 1.0 / plant[A.P_ARM]
     if plant[A.P_LOAD_MODEL] == A.LOAD_LINKAGE:
         q = plant[A.P_LINK : A.P_LINK_END]
         ds = 1e-6

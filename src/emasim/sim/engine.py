@@ -1,8 +1,10 @@
 """The compiled multirate loop: sampled-data control on integer ticks, RK4 sub-steps between.
 
 At tick k (t = k Ts) the sensors are read, the position controller (if the reference is a
-position) and the speed controller run, and the current loop computes the stator voltage, held
-over the tick (zero-order hold). The plant is then integrated over Ts with n fixed RK4 sub-steps
+position) and the speed controller run, and the current loop computes the stator voltage. The
+drive holds its limits on every command (emasim.plant.ratings). After the computation delay
+Td (a whole number of sub-steps, at most Ts) the voltage is applied and held (zero-order hold);
+until then the previous one acts. The plant is integrated over Ts with n fixed RK4 sub-steps
 of h = Ts/n. The LuGre bristle state is not advanced by RK4: in every stage it takes its exact
 value for the stage's speed held (friction.bristle_update), and at the end of the sub-step its
 exact value for the mean speed of the sub-step, which stays stable at any h although the bristle
@@ -19,7 +21,12 @@ from numba import types
 
 from ..errors import SimulationDiverged
 from ..interface import (
+    LIMIT_CURRENT,
+    LIMIT_SPEED,
+    LIMIT_VOLTAGE,
+    M_IQ,
     M_POSITION,
+    M_RUDDER,
     M_SPEED,
     O_RATE,
     O_UD,
@@ -33,11 +40,18 @@ from ..jit import njit
 from ..numerics import clamp
 from ..plant import actuator as A
 from ..plant.motor import limit_voltage
+from ..plant.ratings import folded_back, heat_update, speed_foldback
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
 from .borrowed import borrowed
 from .core import (
     CURRENT_SLOT,
+    D_CURRENT_LIMIT,
+    D_FLAGS,
+    D_FOLDED,
+    D_HEAT,
+    D_UD,
+    D_UQ,
     F8A,
     LAW_TYPE,
     PLANT_TYPE,
@@ -58,7 +72,9 @@ from .core import (
 from .diagnosis import likely_cause
 from .result import Result, RunDescription
 from .trace import (
+    C_CURRENT_LIMIT,
     C_IQ_REF,
+    C_LIMIT_FLAGS,
     C_MEASURED_POSITION,
     C_MEASURED_SPEED,
     C_MOTOR_LOAD,
@@ -78,6 +94,9 @@ LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
 LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
 LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
 
+FEEDBACK_ROD = 0  # the position loop closes on the rod's displacement sensor
+FEEDBACK_RUDDER = 1  # ... on the rudder encoder, through the rigid kinematics' rod position
+
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
 
 # status codes returned by run_ticks
@@ -86,20 +105,39 @@ NOT_FINITE = 1
 OUT_OF_BOUNDS = 2
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def current_bounds(p, drive, speed):
+    """The drive's current command bounds (lower, upper) in A at measured speed ``speed``, and
+    the limit in force: max_current_A, or with the ratings the continuous current while the
+    I^2 t protection holds it (emasim.plant.ratings), folded back near the rated speed."""
+    i_lim = p[A.P_IMAX]
+    if p[A.P_RATINGS] == 0.0:
+        return -i_lim, i_lim, i_lim
+    if drive[D_FOLDED] != 0.0:
+        i_lim = p[A.P_I_CONT]
+    up, down = speed_foldback(speed, p[A.P_W_RATED])
+    return -i_lim * down, i_lim * up, i_lim
+
+
 @njit(cache=True, error_model="numpy")
-def control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch):
+def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing, scratch):
     """One control sample: read the sensors, run the slots that close (position, speed, then
-    current), and return (ud, uq, speed_ref, iq_ref, position_ref) applied from t on.
+    current), and return (ud, uq, speed_ref, iq_ref, position_ref) applied from t + Td on.
 
     The drive's limits hold whatever a slot commands, library or user-written: a speed command
-    within +-max_speed, a current command within +-max_current, the voltage within the
-    inverter's Udc/sqrt(3). ``laws`` are the slots' compiled functions, ``slots`` their
-    (params, state); ``scratch`` is (meas, ref, out), reused from tick to tick.
+    within +-max_speed, a current command within the bounds of :func:`current_bounds`, the
+    voltage within the inverter's Udc/sqrt(3); ``drive`` receives the limit in force and the
+    limits that acted, and its I^2 t heat advances on the measured current. ``laws`` are the
+    slots' compiled functions, ``slots`` their (params, state); ``scratch`` is (meas, ref,
+    out), reused from tick to tick.
     """
     meas, ref, out = scratch
     p = plant.params
     ts = timing.sample_period_s
-    measure(x, p, sensors.table, sensors.gap, meas)
+    measure(x, p, sensors.table, sensors.state, meas, tick)
+    if timing.feedback == FEEDBACK_RUDDER:
+        meas[M_POSITION] = signal_value(sensors.rudder_to_rod, meas[M_RUDDER])
+    flags = 0
     r, dr, ddr = signal_derivatives(signals.reference, t)
     position_ref = np.nan
     if timing.loop != LOOP_SPEED:
@@ -108,20 +146,34 @@ def control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch):
         params, state = slots[POSITION_SLOT]
         laws[POSITION_SLOT](state, params, meas, ref, ts, out)
         r, dr = out[O_VALUE], out[O_RATE]
-    i_max = p[A.P_IMAX]
+    i_low, i_high, i_lim = current_bounds(p, drive, meas[M_SPEED])
     if timing.loop == LOOP_POSITION_CURRENT:
-        iq_ref = clamp(r, -i_max, i_max)
+        command = r
         r = np.nan  # no speed reference in this structure
     else:
-        r = clamp(r, -p[A.P_WMAX], p[A.P_WMAX])
+        w_max = p[A.P_WMAX]
+        if abs(r) > w_max:
+            flags |= LIMIT_SPEED
+        r = clamp(r, -w_max, w_max)
         ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = r, dr, 0.0
         params, state = slots[SPEED_SLOT]
         laws[SPEED_SLOT](state, params, meas, ref, ts, out)
-        iq_ref = clamp(out[O_VALUE], -i_max, i_max)
+        command = out[O_VALUE]
+    iq_ref = clamp(command, i_low, i_high)
+    if iq_ref != command:
+        flags |= LIMIT_CURRENT if abs(iq_ref) >= i_lim else LIMIT_SPEED
     ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = iq_ref, 0.0, 0.0
     params, state = slots[CURRENT_SLOT]
     laws[CURRENT_SLOT](state, params, meas, ref, ts, out)
     u_d, u_q = limit_voltage(out[O_UD], out[O_UQ], p[A.P_UDC])
+    if u_d != out[O_UD] or u_q != out[O_UQ]:
+        flags |= LIMIT_VOLTAGE
+    if p[A.P_RATINGS] != 0.0:
+        capacity = p[A.P_HEAT_CAPACITY]
+        drive[D_HEAT] = heat_update(drive[D_HEAT], meas[M_IQ], p[A.P_I_CONT], capacity, ts)
+        drive[D_FOLDED] = folded_back(drive[D_FOLDED] != 0.0, drive[D_HEAT], capacity)
+    drive[D_CURRENT_LIMIT] = i_lim
+    drive[D_FLAGS] = flags
     return u_d, u_q, r, iq_ref, position_ref
 
 
@@ -171,9 +223,10 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
 
 
 @njit(cache=True, error_model="numpy")
-def check_state(x, limits, status, tick):
-    """Flag the first state that is NaN/inf or beyond its limit; True when all are fine."""
-    for i in range(A.N_STATE):
+def check_state(x, p, limits, status, tick):
+    """Flag the first state this loop integrates (actuator.active_states) that is NaN/inf or
+    beyond its limit; True when all are fine."""
+    for i in range(A.active_states(p)):
         if not np.isfinite(x[i]):
             status[0], status[1], status[2] = NOT_FINITE, tick, i
             return False
@@ -184,7 +237,7 @@ def check_state(x, limits, status, tick):
 
 
 @njit(cache=True, error_model="numpy")
-def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas):
+def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas, drive):
     """Store row r of the traces: the kept columns of the TRACE row (core.TraceArrays)."""
     row = trace.row
     row[0] = t
@@ -195,6 +248,8 @@ def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref
     row[C_POSITION_REF] = position_ref
     row[C_UD] = u_d
     row[C_UQ] = u_q
+    row[C_CURRENT_LIMIT] = drive[D_CURRENT_LIMIT]
+    row[C_LIMIT_FLAGS] = drive[D_FLAGS]
     A.plant_outputs(x, p, row[C_OUTPUTS : C_OUTPUTS + A.N_OUTPUTS])
     row[C_MOTOR_LOAD] = signal_value(signals.motor_load, t)
     row[C_ROD_LOAD] = signal_value(signals.rod_load, t)
@@ -206,7 +261,7 @@ def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _borrow(x, plant, signals, sensors, slots, workspace, trace, status):
+def _borrow(x, plant, signals, sensors, drive, slots, workspace, trace, status):
     """Every array run_ticks is given, as a borrowed view (emasim.sim.borrowed)."""
     rk4 = workspace.rk4
     return (
@@ -218,7 +273,10 @@ def _borrow(x, plant, signals, sensors, slots, workspace, trace, status):
             borrowed(signals.rod_load),
             borrowed(signals.rudder_load),
         ),
-        SensorArrays(borrowed(sensors.table), borrowed(sensors.gap)),
+        SensorArrays(
+            borrowed(sensors.table), borrowed(sensors.state), borrowed(sensors.rudder_to_rod)
+        ),
+        borrowed(drive),
         (
             (borrowed(slots[0][0]), borrowed(slots[0][1])),
             (borrowed(slots[1][0]), borrowed(slots[1][1])),
@@ -249,6 +307,7 @@ RUN_SIG = types.void(
     PLANT_TYPE,
     SIGNALS_TYPE,
     SENSORS_TYPE,
+    F8A,  # the drive's state (core.D_*)
     LAW_TYPE,  # position
     LAW_TYPE,  # speed
     LAW_TYPE,  # current
@@ -268,6 +327,7 @@ def run_ticks(
     plant,
     signals,
     sensors,
+    drive,
     position_law,
     speed_law,
     current_law,
@@ -277,8 +337,8 @@ def run_ticks(
     trace,
     status,
 ):
-    """Run ticks k0 .. k1-1 in place on x, the slots' states and the sensors' play operators
-    (the records of emasim.sim.core), every array borrowed (emasim.sim.borrowed).
+    """Run ticks k0 .. k1-1 in place on x, the slots' states, the sensors' and the drive's
+    state (the records of emasim.sim.core), every array borrowed (emasim.sim.borrowed).
 
     Row k // record_every of ``trace`` is recorded at every ``record_every``-th tick.
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
@@ -286,8 +346,8 @@ def run_ticks(
     """
     if k0 == 0:
         seed_noise(timing.seed)
-    x, plant, signals, sensors, slots, workspace, trace, status = _borrow(
-        x, plant, signals, sensors, slots, workspace, trace, status
+    x, plant, signals, sensors, drive, slots, workspace, trace, status = _borrow(
+        x, plant, signals, sensors, drive, slots, workspace, trace, status
     )
     ts = timing.sample_period_s
     h = ts / timing.substeps
@@ -295,19 +355,37 @@ def run_ticks(
     p = plant.params
     motor_load, rod_load, rudder_load = signals.motor_load, signals.rod_load, signals.rudder_load
     laws = (position_law, speed_law, current_law)
+    delay = timing.delay_substeps
     for k in range(k0, k1):
         t = k * ts
         u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
-            t, x, plant, signals, sensors, laws, slots, timing, scratch
+            t, k, x, plant, signals, sensors, drive, laws, slots, timing, scratch
         )
         if k % timing.record_every == 0:
             r = k // timing.record_every
             record(
-                trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, scratch[0]
+                trace,
+                r,
+                t,
+                x,
+                p,
+                signals,
+                u_d,
+                u_q,
+                speed_ref,
+                iq_ref,
+                position_ref,
+                scratch[0],
+                drive,
             )
         for j in range(timing.substeps):
-            plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, workspace)
-        if not check_state(x, plant.limits, status, k + 1):
+            if j < delay:  # the computation delay: the previous command still acts
+                v_d, v_q = drive[D_UD], drive[D_UQ]
+            else:
+                v_d, v_q = u_d, u_q
+            plant_step(t + j * h, x, v_d, v_q, p, motor_load, rod_load, rudder_load, h, workspace)
+        drive[D_UD], drive[D_UQ] = u_d, u_q
+        if not check_state(x, p, plant.limits, status, k + 1):
             return
 
 

@@ -39,11 +39,23 @@ def _rhs(t, x, u_d, u_q, p, signals, t_end):
 
 @njit(cache=True, error_model="numpy")
 def _tick(
-    t, x, plant, signals, sensors, position_law, speed_law, current_law, slots, timing, scratch
+    t,
+    tick,
+    x,
+    plant,
+    signals,
+    sensors,
+    drive,
+    position_law,
+    speed_law,
+    current_law,
+    slots,
+    timing,
+    scratch,
 ):
     """The engine's control_tick, its three laws given one by one (as run_ticks takes them)."""
     laws = (position_law, speed_law, current_law)
-    return control_tick(t, x, plant, signals, sensors, laws, slots, timing, scratch)
+    return control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing, scratch)
 
 
 def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Result:
@@ -51,14 +63,16 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
     ts = setup.sample_period_s
     run = setup.start()
     x = run.x
-    plant, signals, sensors, *laws, slots, timing, workspace = run.core
+    plant, signals, sensors, drive, *laws, slots, timing, workspace = run.core
+    if timing.delay_substeps:
+        raise ValueError("the reference path runs without a computation delay")
     scratch = (workspace.meas, workspace.ref, workspace.out)
     seed_noise(setup.seed)
     start = time.perf_counter()
     for k in range(setup.n_ticks):
         t = k * ts
         u_d, u_q, speed_ref, iq_ref, position_ref = _tick(
-            t, x, plant, signals, sensors, *laws, slots, timing, scratch
+            t, k, x, plant, signals, sensors, drive, *laws, slots, timing, scratch
         )
         if k % setup.record_every == 0:
             record(
@@ -74,6 +88,7 @@ def simulate_reference(setup, method: str = "Radau", rtol: float = 1e-10) -> Res
                 iq_ref,
                 position_ref,
                 scratch[0],
+                drive,
             )
         sol = solve_ivp(
             _rhs,

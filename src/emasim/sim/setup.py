@@ -6,12 +6,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..control.slot import Compiled, PlantFacts
-from ..interface import MEASUREMENT_NAMES, N_MEAS
+from ..interface import MEASUREMENT_NAMES
 from ..plant import actuator as A
 from ..plant.parameters import RPM
-from ..plant.sensors import true_values
+from ..plant.sensors import ideal_table, initial_state
 from ..signals import ZERO
 from .core import (
+    N_DRIVE,
     Core,
     LawAddress,
     PlantArrays,
@@ -21,7 +22,7 @@ from .core import (
     TraceArrays,
     new_workspace,
 )
-from .engine import LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
+from .engine import FEEDBACK_ROD, LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
 from .trace import TRACE_COLUMNS
 
 
@@ -45,13 +46,16 @@ class Setup:
     current: Compiled
     position: Compiled | None = None
     rudder_load: np.ndarray = field(default_factory=lambda: ZERO.copy())
-    sensors: np.ndarray = field(default_factory=lambda: np.zeros((N_MEAS, 4)))
+    sensors: np.ndarray = field(default_factory=ideal_table)  # emasim.plant.sensors table
     record_every: int = 10
     seed: int = 0
     x0: np.ndarray = field(default_factory=lambda: np.zeros(A.N_STATE))
     limits: np.ndarray = field(default_factory=lambda: np.full(A.N_STATE, 1e12))
     facts: PlantFacts | None = None  # the drive's ratings, for diagnosing a divergence
     record_signals: tuple[str, ...] | None = None  # trace columns to keep (None: every one)
+    delay_substeps: int = 0  # computation delay, in sub-steps (0 .. substeps)
+    feedback: int = FEEDBACK_ROD  # the position loop's sensor (engine.FEEDBACK_*)
+    rudder_to_rod: np.ndarray = field(default_factory=lambda: ZERO.copy())  # core.SensorArrays
 
     def __post_init__(self):
         for name in ("sample_period_s", "duration_s"):
@@ -60,6 +64,10 @@ class Setup:
                 raise ValueError(f"{name} must be a finite number > 0, got {value}")
         if self.substeps < 1 or self.record_every < 1:
             raise ValueError("substeps and record_every must be whole numbers >= 1")
+        if not 0 <= self.delay_substeps <= self.substeps:
+            raise ValueError(
+                f"delay_substeps must be 0 .. substeps ({self.substeps}), got {self.delay_substeps}"
+            )
 
     @property
     def n_ticks(self) -> int:
@@ -91,10 +99,11 @@ class Setup:
 
     def sensor_description(self) -> dict[str, tuple[float, float, float, float]]:
         """Channel -> (resolution, noise_std, offset, gap_width) of every non-ideal channel."""
+        ideal = ideal_table()
         return {
             name: (float(row[0]), float(row[1]), float(row[2]), 2.0 * float(row[3]))
-            for name, row in zip(MEASUREMENT_NAMES, self.sensors, strict=True)
-            if np.any(row != 0.0)
+            for name, row, perfect in zip(MEASUREMENT_NAMES, self.sensors, ideal, strict=True)
+            if np.any(row[:4] != perfect[:4])
         }
 
     def with_(self, **changes) -> "Setup":
@@ -132,7 +141,12 @@ class Setup:
                 _floats(self.rod_load),
                 _floats(self.rudder_load),
             ),
-            SensorArrays(np.ascontiguousarray(self.sensors, np.float64), self.initial_gap_state()),
+            SensorArrays(
+                _floats(self.sensors),
+                initial_state(self.x0, self.plant, _floats(self.sensors)),
+                _floats(self.rudder_to_rod),
+            ),
+            np.zeros(N_DRIVE),
             *laws,
             slots,
             Timing(
@@ -141,6 +155,8 @@ class Setup:
                 self.record_every,
                 self.seed,
                 self.loop_structure,
+                self.delay_substeps,
+                self.feedback,
             ),
             new_workspace(),
         )
@@ -156,17 +172,11 @@ class Setup:
             core=core,
         )
 
-    def initial_gap_state(self) -> np.ndarray:
-        """Start of every sensor's play operator: the channel's true initial value."""
-        values = np.zeros(N_MEAS)
-        true_values(self.x0, self.plant, values)
-        return values
-
 
 @dataclass
 class RunState:
     """What one run of a Setup changes: the plant state, the trace, and the core's inputs
-    (whose slot states and play operators change too).
+    (whose slot states, sensors' and drive's states change too).
 
     The position slot holds the speed controller when no position loop closes (the compiled
     loop always takes three slots; it calls the position slot only in a position loop).

@@ -13,13 +13,17 @@ CONTROL_COLUMNS = (
     Quantity("speed_ref_rad_s", "rad/s", "speed command (NaN when the position loop commands iq)"),
     Quantity("iq_ref_A", "A", "q-axis current command"),
     Quantity("position_ref_m", "m", "rod position reference (NaN in a speed-loop run)"),
-    Quantity("ud_V", "V", "d-axis stator voltage, limited by the inverter"),
-    Quantity("uq_V", "V", "q-axis stator voltage, limited by the inverter"),
+    Quantity("ud_V", "V", "d-axis stator voltage command, limited by the inverter"),
+    Quantity("uq_V", "V", "q-axis stator voltage command, limited by the inverter"),
+    Quantity("current_limit_A", "A", "the drive's current limit in force (emasim.plant.ratings)"),
+    Quantity(
+        "limit_flags", "1", "the drive's limits that acted: LIMIT_* bits of emasim.plant.ratings"
+    ),
 )
 LOAD_COLUMNS = (
     Quantity("load_torque_Nm", "N m", "external load torque on the motor shaft"),
     Quantity("rod_load_N", "N", "external force on the rod, positive opposing extension"),
-    Quantity("rudder_load_Nm", "N m", "load torque on the rudder shaft (linkage)"),
+    Quantity("rudder_load_Nm", "N m", "rudder load T(t), opposing positive deflection"),
 )
 MEASURED_COLUMNS = (
     Quantity("measured_speed_rad_s", "rad/s", "speed sensor reading"),
@@ -43,6 +47,8 @@ C_IQ_REF = TRACE.index("iq_ref_A")
 C_POSITION_REF = TRACE.index("position_ref_m")
 C_UD = TRACE.index("ud_V")
 C_UQ = TRACE.index("uq_V")
+C_CURRENT_LIMIT = TRACE.index("current_limit_A")
+C_LIMIT_FLAGS = TRACE.index("limit_flags")
 C_OUTPUTS = TRACE.index(A.PLANT.outputs.names[0])
 C_MOTOR_LOAD = TRACE.index("load_torque_Nm")
 C_ROD_LOAD = TRACE.index("rod_load_N")

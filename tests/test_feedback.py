@@ -1,0 +1,49 @@
+"""The position loop closes on the rod sensor or on the rudder encoder (loop.position_feedback).
+
+With rudder feedback the position controller sees the rod position that the rigid kinematics
+give for the encoder's angle (emasim.scenarios.schema.rudder_rod_grid, the same map the rudder
+reference goes through), so the hinge clearances sit inside the loop. Checks:
+
+* on the lumped stage the rudder angle is x_L / arm exactly, so both feedbacks give the same
+  run to round-off;
+* on the linkage, with ideal sensors, the loop's position reading is the map of the true
+  rudder angle, and it differs from the rod's own position by the play of the clearances;
+* rudder feedback without a position loop is refused.
+"""
+
+import numpy as np
+import pytest
+
+from emasim.errors import InputError
+from emasim.scenarios.loader import load_scenario
+from emasim.scenarios.schema import rudder_rod_grid
+from emasim.sim.engine import simulate
+
+RUDDER = "loop.position_feedback='rudder'"
+
+
+def run(name: str, *settings: str):
+    scenario = load_scenario(name, controllers=["position=pid"], settings=list(settings))
+    return scenario, simulate(scenario.setup())
+
+
+def test_on_the_lumped_stage_rudder_feedback_is_rod_feedback():
+    _, rod = run("position-step", "duration_s=0.3")
+    _, rudder = run("position-step", "duration_s=0.3", RUDDER)
+    for column in ("actuator_position_m", "iq_ref_A", "measured_position_m"):
+        scale = np.max(np.abs(rod[column]))
+        assert np.max(np.abs(rudder[column] - rod[column])) <= 1e-9 * scale, column
+
+
+def test_on_the_linkage_the_loop_reads_the_rudder_through_the_kinematics():
+    scenario, result = run("bench-step", "duration_s=0.3", "sensors='ideal'", RUDDER)
+    angles, rods = rudder_rod_grid(scenario.plant)
+    expected = np.interp(result["rudder_angle_rad"], angles, rods)
+    assert np.max(np.abs(result["measured_position_m"] - expected)) < 1e-12
+    play = np.abs(result["measured_position_m"] - result["actuator_position_m"])
+    assert play.max() > 1e-7  # the clearances (0.01 mm at four hinges) are inside the loop
+
+
+def test_rudder_feedback_needs_a_position_loop():
+    with pytest.raises(InputError, match="position_feedback"):
+        load_scenario("speed-step", settings=[RUDDER])
