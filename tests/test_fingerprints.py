@@ -14,7 +14,7 @@ onto the 125 mm stop).
 
 import numpy as np
 import pytest
-from trace_fingerprints import STORE, fingerprints
+from trace_fingerprints import STORE, fingerprinted_scenarios, fingerprints
 
 from emasim.scenarios.loader import load_scenario
 
@@ -23,7 +23,8 @@ RELATIVE = 1e-12
 
 def inside_stroke(stored, run: str) -> slice:
     """The stored rows of run 'scenario/label' before the rod first left the stroke."""
-    half = 0.5e-3 * load_scenario(run.split("/")[0]).plant.drivetrain.stroke_mm
+    scenario = load_scenario(fingerprinted_scenarios()[run.split("/")[0]])
+    half = 0.5e-3 * scenario.plant.drivetrain.stroke_mm
     beyond = np.flatnonzero(np.abs(stored[f"{run}/actuator_position_m"]) > half)
     return slice(0, beyond[0] if beyond.size else None)
 

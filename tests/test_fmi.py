@@ -8,6 +8,7 @@ here, in a temporary folder: nothing is downloaded.
 
 import json
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -60,6 +61,9 @@ MEASURED = (
 )
 COMPARED = ("id_A", "iq_A", "motor_speed_rad_s", "actuator_position_m", "rudder_angle_rad")
 COMPARED += ("drivetrain_force_N", "ud_V", "uq_V")
+
+# cosim-step on the idealised bench: the linkage alone, which is what a mechanism FMU is
+LINKAGE_ALONE = str(Path(__file__).parent / "data" / "idealised" / "cosim-step.toml")
 
 
 @pytest.fixture(scope="module")
@@ -185,7 +189,7 @@ def test_the_plant_fmu_under_fmpy_matches_the_engine(fmu_and_engine):
 def cosim_step(*settings):
     base = ["duration_s=0.2", "solver.communication_step_s=1e-3"]
     return run_scenario(
-        load_scenario("cosim-step", controllers=["pid"], settings=[*base, *settings]),
+        load_scenario(LINKAGE_ALONE, controllers=["pid"], settings=[*base, *settings]),
         trust_fmu=True,
     )
 
@@ -263,7 +267,7 @@ def test_a_mechanism_fmu_with_only_the_velocity_and_two_outputs_will_do(tmp_path
 def test_an_external_fmu_runs_only_when_trusted(mechanism_fmu):
     """Loading an FMU runs its code: without trust_fmu the run is refused before it starts."""
     scenario = load_scenario(
-        "cosim-step",
+        LINKAGE_ALONE,
         controllers=["pid"],
         settings=[
             "duration_s=0.01",
@@ -283,6 +287,18 @@ def test_the_mechanism_fmu_is_refused_outside_a_cosimulation_or_without_its_vari
 ):
     with pytest.raises(InputError, match="communication_step_s"):
         load_scenario("cosim-step", controllers=["pid"], settings=["solver.mechanism_fmu=x.fmu"])
+    with pytest.raises(InputError, match="an FMU mechanism is the linkage alone"):
+        run_scenario(  # the shipped cosim-step has the rudder shaft and the load motor
+            load_scenario(
+                "cosim-step",
+                controllers=["pid"],
+                settings=[
+                    "solver.communication_step_s=1e-3",
+                    f"solver.mechanism_fmu={json.dumps(str(plant_fmu))}",
+                ],
+            ),
+            trust_fmu=True,
+        )
     with pytest.raises(InputError, match="solver.mechanism_fmu: .*no such FMU file"):
         cosim_step(f"solver.mechanism_fmu={json.dumps(str(tmp_path / 'missing.fmu'))}")
     with pytest.raises(InputError, match="lacks the Real input 'rod_velocity_m_s'"):

@@ -7,7 +7,7 @@ from pathlib import Path
 from typer.testing import CliRunner
 
 from emasim.cli import app
-from emasim.scenarios.loader import validate_scenario
+from emasim.scenarios.loader import read_scenario_file, validate_scenario
 
 README = (Path(__file__).parents[1] / "README.md").read_text()
 
@@ -28,12 +28,29 @@ def blocks(language: str) -> list[str]:
     return found
 
 
+def toml_block(starting: str) -> str:
+    """The one TOML block of the README whose first line starts with ``starting``."""
+    (found,) = [b for b in blocks("toml") if b.startswith(starting)]
+    return found
+
+
 def test_the_scenario_example_is_valid_and_runs():
-    (example,) = blocks("toml")
+    example = toml_block("name = ")
     scenario = validate_scenario(tomllib.loads(example))
     assert scenario.sensors.rudder.noise_std > 0  # "bench" sensors were picked up
     assert scenario.plant.backlash.width_mm == 0.2
     assert scenario.reference.loop == "position"
+
+
+def test_the_realistic_bench_options_are_valid_on_a_bench_scenario():
+    options = toml_block("sensors = ")
+    raw, _ = read_scenario_file("bench-step")
+    for key, value in tomllib.loads(options).items():
+        raw[key] = {**raw.get(key, {}), **value} if isinstance(value, dict) else value
+    scenario = validate_scenario(raw)
+    assert scenario.loop.position_feedback == "rudder"
+    assert scenario.loop.computation_delay_s == 1e-4
+    assert scenario.sensors.speed.derived and scenario.plant.load_motor.preload_Nm == 200.0
 
 
 def test_the_python_examples_run(tmp_path, monkeypatch):

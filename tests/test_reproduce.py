@@ -1,5 +1,6 @@
 """emasim reproduce: every experiment, the paper's numbers beside ours, consistent files."""
 
+import importlib.util
 import json
 import tomllib
 from pathlib import Path
@@ -11,12 +12,24 @@ from emasim.analysis.paper_report import EXPERIMENTS, HEADLINE, paper_results, r
 from emasim.cli import app
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"
+ROOT = Path(__file__).parents[1]
+
+
+def readme_headline():
+    """``docs/readme_headline.py`` by path: ``docs/`` is not a package."""
+    spec = importlib.util.spec_from_file_location(
+        "readme_headline", ROOT / "docs" / "readme_headline.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce") / "report"
-    result = CliRunner().invoke(app, ["reproduce", "--out", str(out)])
+    # the ablation re-runs the bench experiments six times: tests/test_ablation.py checks it
+    result = CliRunner().invoke(app, ["reproduce", "--no-ablation", "--out", str(out)])
     assert result.exit_code == 0, result.output
     return out
 
@@ -38,6 +51,20 @@ def test_headline_has_the_five_figures_with_both_sides(report):
         for key in ("paper_pid", "paper_hybrid", "ours_pid", "ours_hybrid", "unit", "definition"):
             assert key in item
         assert isinstance(item["ours_pid"], float) and isinstance(item["ours_hybrid"], float)
+
+
+def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
+    """The README's table is docs/headline.json rendered, and a fresh reproduction measures
+    those numbers (runs are deterministic: tests/test_fingerprints.py)."""
+    module = readme_headline()
+    stored = json.loads(module.STORE.read_text())
+    readme = (ROOT / "README.md").read_text()
+    block = readme[readme.index(module.BEGIN) + len(module.BEGIN) : readme.index(module.END)]
+    assert block.strip() == module.render(stored)
+    measured = json.loads((report / "tables.json").read_text())["headline"]
+    for key, item in stored.items():
+        for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
+            assert measured[key][side] == pytest.approx(item[side], rel=1e-9), (key, side)
 
 
 def test_tables_agree_with_the_runs_and_the_paper(report):

@@ -9,15 +9,16 @@ from emasim.sim.result import Result
 
 
 def test_a_position_run_describes_its_cascade_elements_sensors_and_units(tmp_path):
-    scenario = load_scenario(
-        "bench-step", controllers=["hybrid"], settings=["duration_s=0.02", 'sensors="bench"']
-    )
+    scenario = load_scenario("bench-step", controllers=["hybrid"], settings=["duration_s=0.02"])
     result = run_scenario(scenario)
     run = result.description
     assert run.outer_loop == "position" and result.outer_loop == "position"
     assert run.loops == {"position": "rbf-smc", "speed": "st-gpio", "current": "pi"}
-    assert "linkage" in run.elements and "compliance" not in run.elements
-    assert run.sensors and all(len(v) == 4 for v in run.sensors.values())
+    assert {"linkage", "compliance", "anchorage", "rudder_shaft", "load_motor"} <= set(run.elements)
+    assert run.sensors["rudder"]["resolution"] > 0 and run.sensors["rudder"]["noise_std"] > 0
+    assert set(run.sensors) == {"rudder", "position", "force", "angle", "speed", "id", "iq"}
+    assert run.sensors["speed"]["derived_from"] == "angle"  # the bench-digital sensors
+    assert run.sensors["position"]["sample_period_s"] == 1e-3
     assert set(run.units) == set(result.columns)
     assert run.units["iq_A"] == "A" and run.units["hinge1_force_N"] == "N"
     again = Result.load(result.save(tmp_path / "run", plot=False))

@@ -24,7 +24,7 @@ def test_measure_reads_every_channel_and_the_gap():
     x = np.zeros(A.N_STATE)
     x[A.X_WM], x[A.X_XL] = 50.0, 0.01
     sensors = SensorParams(position=SensorChannel(gap_width=1e-3)).pack(1e-4)
-    state = initial_state(x, p, sensors)
+    state = initial_state(x, p)
     meas = np.zeros(N_MEAS)
     measure(x, p, sensors, state, meas, 0)
     assert meas[M_SPEED] == 50.0

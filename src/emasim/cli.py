@@ -313,6 +313,10 @@ def reproduce(
         typer.Option("--only", help="run only this experiment (repeatable)"),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    ablation: Annotated[
+        bool,
+        typer.Option(help="re-run the bench experiments as the bench's elements are added"),
+    ] = True,
 ) -> None:
     """Run every paper experiment and write report.md, report.html and tables.json."""
     from .analysis.paper_report import EXPERIMENTS
@@ -332,7 +336,7 @@ def reproduce(
     try:
         if out is not None:
             check_folder(out, force)
-        folder = run_all(out, only=only, progress=progress, force=force)
+        folder = run_all(out, only=only, progress=progress, force=force, with_ablation=ablation)
     except EmasimError as err:
         _fail(err)
     finally:

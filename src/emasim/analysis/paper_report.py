@@ -4,8 +4,9 @@ Nothing here runs a simulation: :mod:`emasim.experiments.reproduction` runs the 
 hands their metrics and figures to :func:`build_tables` and :func:`write_report`. ``emasim
 reproduce`` writes, atomically:
 ``report.md`` and ``report.html`` (figures, tables 2-7 and the simulation figures' numbers with
-the paper's values beside ours, the five headline figures of the abstract, the assumptions and
-the tuning record), ``tables.json`` (the same numbers for machines, with a ``headline`` object),
+the paper's values beside ours, the five headline figures of the abstract, the ablation of the
+bench's elements, the assumptions and the tuning record), ``tables.json`` (the same numbers for
+machines, with a ``headline`` object and an ``ablation`` list),
 ``figures/*.png`` and ``runs/<experiment>/`` (every run, with its scenario and metadata).
 The paper's numbers are in ``paper_results.toml`` beside this module (transcribed from the text).
 """
@@ -91,6 +92,23 @@ HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
     ),
 }
 PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
+# the ablation's columns: the headline metrics of each bench table, then its other magnitudes
+ABLATION_COLUMNS = {
+    "bench_step": (
+        "steady_error_rms_deg",
+        "chatter_amplitude_deg",
+        "velocity_fluctuation_deg_s",
+        "settling_time_s",
+        "rise_time_s",
+        "peak_velocity_deg_s",
+    ),
+    "bench_sine": (
+        "tracking_error_deg",
+        "velocity_fluctuation_deg_s",
+        "initial_reverse_motion",
+        "peak_velocity_deg_s",
+    ),
+}
 
 
 def paper_results() -> dict:
@@ -205,6 +223,62 @@ def build_tables(metrics: dict) -> dict:
     return tables
 
 
+def ablation_rows(ablation: dict) -> list[dict]:
+    """The ``ablation`` list of tables.json from {experiment: {stage: {label: metrics}}}: one
+    row per experiment, stage and bench-table metric, the paper's bench values beside ours."""
+    paper = paper_results()
+    rows = []
+    for name, stages in ablation.items():
+        key = name.replace("-", "_")
+        table_rows = BENCH_STEP_ROWS if key == "bench_step" else BENCH_SINE_ROWS
+        for stage, metrics in stages.items():
+            for row in bench_table(paper[key], metrics, table_rows):
+                rows.append({"experiment": key, "stage": stage, **row})
+    return rows
+
+
+def ablation_moves(rows: list[dict]) -> list[str]:
+    """For each column of ABLATION_COLUMNS and controller, the stage that moves it most from
+    the stage before, as report lines (measured: read off the rows)."""
+    lines = []
+    for key, columns in ABLATION_COLUMNS.items():
+        for metric in columns:
+            series = [r for r in rows if r["experiment"] == key and r["metric"] == metric]
+            for side, label in (("ours_pid", PID_LABEL), ("ours_hybrid", HYBRID_LABEL)):
+                values = [(r["stage"], r[side]) for r in series]
+                steps = [
+                    (abs(after - before), stage, before, after)
+                    for (_, before), (stage, after) in zip(values, values[1:], strict=False)
+                    if isinstance(before, float)
+                    and isinstance(after, float)
+                    and math.isfinite(before)
+                    and math.isfinite(after)
+                ]
+                if steps:
+                    _, stage, before, after = max(steps)
+                    lines.append(
+                        f"{key} {metric}, {label}: most moved by {stage} "
+                        f"({_fmt(before)} -> {_fmt(after)})"
+                    )
+    return lines
+
+
+def _ablation_markdown(rows: list[dict], key: str) -> str:
+    columns = ABLATION_COLUMNS[key]
+    mine = [r for r in rows if r["experiment"] == key]
+    stages = list(dict.fromkeys(r["stage"] for r in mine))
+    value = {(r["stage"], r["metric"]): r for r in mine}
+    header = ["stage", *(f"{c} (PID / hybrid)" for c in columns)]
+
+    def pair(stage: str, column: str, side: str) -> str:
+        row = value[stage, column]
+        return f"{_fmt(row[f'{side}_pid'])} / {_fmt(row[f'{side}_hybrid'])}"
+
+    body = [["paper bench"] + [pair(stages[0], c, "paper") for c in columns]]
+    body += [[stage] + [pair(stage, c, "ours") for c in columns] for stage in stages]
+    return markdown_table(header, body)
+
+
 def definitions() -> list[str]:
     """The windows and bands behind the numbers, as report lines."""
     return [
@@ -306,8 +380,16 @@ def _headline_markdown(items: dict) -> str:
     return markdown_table(header, rows)
 
 
-def write_report(folder: Path, tables: dict, scenarios: dict, figures: dict, notes: str) -> None:
-    """report.md, report.html and tables.json into ``folder``."""
+def write_report(
+    folder: Path,
+    tables: dict,
+    scenarios: dict,
+    figures: dict,
+    notes: str,
+    stages: tuple = (),
+) -> None:
+    """report.md, report.html and tables.json into ``folder``; ``stages`` names and describes
+    the ablation's stages, when ``tables`` has an ablation."""
     import markdown
 
     parts = [
@@ -347,6 +429,21 @@ def write_report(folder: Path, tables: dict, scenarios: dict, figures: dict, not
                 else "the scenario's defaults (not tuned)."
             )
         )
+    if tables.get("ablation"):
+        parts += [
+            "## Ablation: the bench's elements one at a time",
+            "Each bench comparison re-run with the same tuned gains as the elements are added "
+            "(emasim.experiments.ablation): "
+            + "; ".join(f"**{name}**: {text}" for name, text in stages)
+            + ".",
+        ]
+        for key in ABLATION_COLUMNS:
+            if any(r["experiment"] == key for r in tables["ablation"]):
+                parts += [
+                    f"### {key.replace('_', '-')}",
+                    _ablation_markdown(tables["ablation"], key),
+                ]
+        parts.append("\n".join(f"- {line}" for line in ablation_moves(tables["ablation"])))
     parts += ["## Definitions", "\n".join(f"- {line}" for line in definitions())]
     parts.append(notes)
     text = "\n\n".join(parts) + "\n"

@@ -1,5 +1,6 @@
-"""The paper's experiments, run: every shipped paper scenario's comparison and the hinge
-clearance sweep, rendered by :mod:`emasim.analysis.paper_report` into one report folder."""
+"""The paper's experiments, run: every shipped paper scenario's comparison, the hinge
+clearance sweep and the ablation of the bench's elements, rendered by
+:mod:`emasim.analysis.paper_report` into one report folder."""
 
 from pathlib import Path
 
@@ -7,13 +8,17 @@ from ..analysis.paper_report import (
     EXPERIMENTS,
     SWEEP_CLEARANCES_MM,
     SWEEP_DURATION_S,
+    ablation_rows,
     build_tables,
     notes,
     write_report,
 )
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
+from .ablation import STAGES, ablation
 from .batch import run_comparison
+
+ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
 
 
 def clearance_sweep() -> list[dict]:
@@ -44,8 +49,11 @@ def reproduce(
     only: list[str] | None = None,
     progress=None,
     force: bool = False,
+    with_ablation: bool = True,
 ) -> Path:
-    """Run the paper's experiments (or ``only`` those) and write the report folder.
+    """Run the paper's experiments (or ``only`` those) and write the report folder; with
+    ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
+    for the bench experiments among them.
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
@@ -66,6 +74,11 @@ def reproduce(
     tables = build_tables(metrics)
     if "cosim-step" in comparisons:
         tables["clearance_sweep"] = clearance_sweep()
+    ablated = {name: comparisons[name] for name in ABLATED if name in comparisons}
+    if with_ablation and ablated:
+        known = {name: c.metrics for name, c in ablated.items()}
+        scenarios = {name: load_scenario(name) for name in ablated}
+        tables["ablation"] = ablation_rows(ablation(scenarios, known))
 
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
@@ -87,7 +100,12 @@ def reproduce(
             save_figure(plot_clearance_sweep(tables["clearance_sweep"]), folder / path)
             figures["cosim-step"].append(("clearance sweep", path))
         write_report(
-            folder, tables, {n: c.scenario for n, c in comparisons.items()}, figures, notes()
+            folder,
+            tables,
+            {n: c.scenario for n, c in comparisons.items()},
+            figures,
+            notes(),
+            stages=STAGES,
         )
 
     if out is None:

@@ -127,22 +127,23 @@ def measure(x, p, table, state, meas, tick):
             v = meas[i]
             if derived:
                 source = meas[int(table[i, S_SOURCE])]
-                rate = (source - state[i, ST_SOURCE]) / table[i, S_PERIOD]
+                if tick == 0:  # no earlier reading to difference: the filter's initial value
+                    v = state[i, ST_FILTER]
+                else:
+                    rate = (source - state[i, ST_SOURCE]) / table[i, S_PERIOD]
+                    v = state[i, ST_FILTER] + table[i, S_ALPHA] * (rate - state[i, ST_FILTER])
                 state[i, ST_SOURCE] = source
-                v = state[i, ST_FILTER] + table[i, S_ALPHA] * (rate - state[i, ST_FILTER])
                 state[i, ST_FILTER] = v
             meas[i] = _sample(i, v, table, state)
 
 
-def initial_state(x0: np.ndarray, p: np.ndarray, table: np.ndarray) -> np.ndarray:
-    """The sensors' state at the start of a run: every play operator and held reading at its
-    channel's true value; a derived channel's source at its true value and its filter at the
-    derived quantity's true value (a plant at rest reads zero rate)."""
+def initial_state(x0: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The sensors' state at the start of a run: every play operator, held reading and filter
+    at its channel's true value. A derived channel's first sample (tick 0) reads its filter's
+    initial value, the true rate (a plant at rest reads zero), and stores its source's first
+    reading to difference the next one against."""
     values = np.zeros(N_MEAS)
     true_values(x0, p, values)
     state = np.zeros((N_MEAS, N_SENSOR_STATE))
     state[:, ST_GAP] = state[:, ST_HELD] = state[:, ST_FILTER] = values
-    for i in range(N_MEAS):
-        if table[i, S_SOURCE] >= 0.0:
-            state[i, ST_SOURCE] = values[int(table[i, S_SOURCE])]
     return state

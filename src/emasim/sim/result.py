@@ -32,14 +32,16 @@ class RunDescription:
     ``elements``: the plant elements present (emasim.plant.actuator.ELEMENTS names);
     ``loops``: slot -> controller name of every closed loop, outermost first (a controller
     built by hand is named by its function); ``outer_loop``: 'position' or 'speed', the loop
-    the reference drives; ``sensors``: channel -> (resolution, noise_std, offset, gap_width)
-    of every non-ideal channel (SI); ``units``: column -> unit of every trace column.
+    the reference drives; ``sensors``: channel -> its non-ideal properties (resolution,
+    noise_std, offset, gap_width in SI, sample_period_s when it samples slower than the
+    controllers, derived_from and filter_alpha for a differenced channel) of every non-ideal
+    channel; ``units``: column -> unit of every trace column.
     """
 
     elements: tuple[str, ...]
     loops: dict[str, str]
     outer_loop: str
-    sensors: dict[str, tuple[float, float, float, float]]
+    sensors: dict[str, dict[str, float | str]]
     units: dict[str, str]
 
     def to_json(self) -> dict:
@@ -47,7 +49,7 @@ class RunDescription:
             "elements": list(self.elements),
             "loops": dict(self.loops),
             "outer_loop": self.outer_loop,
-            "sensors": {name: list(v) for name, v in self.sensors.items()},
+            "sensors": {name: dict(v) for name, v in self.sensors.items()},
             "units": dict(self.units),
         }
 
@@ -57,7 +59,7 @@ class RunDescription:
             elements=tuple(data["elements"]),
             loops=dict(data["loops"]),
             outer_loop=data["outer_loop"],
-            sensors={name: tuple(v) for name, v in data["sensors"].items()},
+            sensors={name: dict(v) for name, v in data["sensors"].items()},
             units=dict(data["units"]),
         )
 

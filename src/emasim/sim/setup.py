@@ -9,7 +9,17 @@ from ..control.slot import Compiled, PlantFacts
 from ..interface import MEASUREMENT_NAMES
 from ..plant import actuator as A
 from ..plant.parameters import RPM
-from ..plant.sensors import ideal_table, initial_state
+from ..plant.sensors import (
+    S_ALPHA,
+    S_EVERY,
+    S_HALF_GAP,
+    S_NOISE,
+    S_OFFSET,
+    S_RESOLUTION,
+    S_SOURCE,
+    ideal_table,
+    initial_state,
+)
 from ..signals import ZERO
 from .core import (
     N_DRIVE,
@@ -97,14 +107,29 @@ class Setup:
             if c is not None
         }
 
-    def sensor_description(self) -> dict[str, tuple[float, float, float, float]]:
-        """Channel -> (resolution, noise_std, offset, gap_width) of every non-ideal channel."""
-        ideal = ideal_table()
-        return {
-            name: (float(row[0]), float(row[1]), float(row[2]), 2.0 * float(row[3]))
-            for name, row, perfect in zip(MEASUREMENT_NAMES, self.sensors, ideal, strict=True)
-            if np.any(row[:4] != perfect[:4])
-        }
+    def sensor_description(self) -> dict[str, dict[str, float | str]]:
+        """Channel -> what is not ideal about it (RunDescription.sensors), for every non-ideal
+        channel."""
+        out = {}
+        for name, row in zip(MEASUREMENT_NAMES, self.sensors, strict=True):
+            found = {
+                key: float(row[column]) * factor
+                for key, column, factor in (
+                    ("resolution", S_RESOLUTION, 1.0),
+                    ("noise_std", S_NOISE, 1.0),
+                    ("offset", S_OFFSET, 1.0),
+                    ("gap_width", S_HALF_GAP, 2.0),
+                )
+                if row[column] != 0.0
+            }
+            if row[S_EVERY] != 1.0:
+                found["sample_period_s"] = float(row[S_EVERY]) * self.sample_period_s
+            if row[S_SOURCE] >= 0.0:
+                found["derived_from"] = MEASUREMENT_NAMES[int(row[S_SOURCE])]
+                found["filter_alpha"] = float(row[S_ALPHA])
+            if found:
+                out[name] = found
+        return out
 
     def with_(self, **changes) -> "Setup":
         """A copy with some fields replaced."""
@@ -143,7 +168,7 @@ class Setup:
             ),
             SensorArrays(
                 _floats(self.sensors),
-                initial_state(self.x0, self.plant, _floats(self.sensors)),
+                initial_state(self.x0, self.plant),
                 _floats(self.rudder_to_rod),
             ),
             np.zeros(N_DRIVE),

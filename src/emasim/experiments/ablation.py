@@ -1,0 +1,114 @@
+"""The ablation of the realistic bench: each bench comparison re-run as its elements are
+added one at a time, with the same tuned gains throughout.
+
+The stages, each adding to the one before (:data:`STAGES`):
+
+1. **lumped**: the SEA805 on the lumped rudder stage, the rod sensor in the position loop,
+   the bench's sensors read at every tick, no delay, an ideal rudder load;
+2. **linkage**: the clearance-joint linkage in place of the lumped stage;
+3. **rudder feedback**: the position loop closes on the rudder encoder;
+4. **compliance**: the screw's axial stiffness, the anchorage and the rudder shaft's torsion;
+5. **digital drive**: the one-sample computation delay, the encoder-differenced speed and the
+   sensors' own rates (the bench-digital sensors), and the drive's rated limits with the
+   rated speed as its speed limit;
+6. **load motor**: the bench's load motor, its inertia, torque loop and standing preload.
+
+A stage is the scenario with the later stages' elements taken out (:func:`stage_scenarios`),
+so the last stage is the bench scenario itself and the first is the idealised bench on the
+lumped rudder (preset sea805-linkage's drive: its speed limit, the rudder stage's 1.5 kg m^2).
+"""
+
+from ..plant.presets import PRESETS, bench_digital_sensors, bench_sensors
+from ..scenarios.schema import Scenario
+from .batch import run_all
+
+STAGES = (
+    ("lumped", "the SEA805 on the lumped rudder stage, rod feedback, an ideal digital loop"),
+    ("linkage", "+ the clearance-joint linkage"),
+    ("rudder feedback", "+ the position loop on the rudder encoder"),
+    ("compliance", "+ screw stiffness, anchorage, rudder-shaft torsion"),
+    ("digital drive", "+ one-sample delay, encoder speed, sensor rates, rated limits"),
+    ("load motor", "+ the load motor: inertia, torque loop, standing preload"),
+)
+
+
+def _revalidated(scenario: Scenario, **changes) -> Scenario:
+    """The scenario with top-level fields replaced, validated again as a whole."""
+    data = scenario.model_dump(mode="json", exclude_none=True)
+    data.update({k: v.model_dump(mode="json", exclude_none=True) for k, v in changes.items()})
+    return Scenario.model_validate(data)
+
+
+def _without_load_motor(sc: Scenario) -> Scenario:
+    return _revalidated(sc, plant=sc.plant.model_copy(update={"load_motor": None}))
+
+
+def _without_digital_drive(sc: Scenario) -> Scenario:
+    idealised_speed = PRESETS["sea805-linkage"]().motor.max_speed_rpm
+    plant = sc.plant.model_copy(
+        update={
+            "ratings": None,
+            "motor": sc.plant.motor.model_copy(update={"max_speed_rpm": idealised_speed}),
+        }
+    )
+    sensors = bench_sensors() if sc.sensors == bench_digital_sensors() else sc.sensors
+    loop = sc.loop.model_copy(update={"computation_delay_s": 0.0})
+    return _revalidated(sc, plant=plant, sensors=sensors, loop=loop)
+
+
+def _without_compliance(sc: Scenario) -> Scenario:
+    plant = sc.plant
+    linkage = plant.linkage
+    if plant.rudder_shaft is not None and linkage is not None:  # the disk back on the rudder
+        inertia = linkage.rudder_inertia_kgm2 + plant.rudder_shaft.disk_inertia_kgm2
+        linkage = linkage.model_copy(update={"rudder_inertia_kgm2": inertia})
+    plant = plant.model_copy(
+        update={"compliance": None, "anchorage": None, "rudder_shaft": None, "linkage": linkage}
+    )
+    return _revalidated(sc, plant=plant)
+
+
+def _without_rudder_feedback(sc: Scenario) -> Scenario:
+    return _revalidated(sc, loop=sc.loop.model_copy(update={"position_feedback": "rod"}))
+
+
+def _without_linkage(sc: Scenario) -> Scenario:
+    return _revalidated(sc, plant=sc.plant.model_copy(update={"linkage": None}))
+
+
+_TAKE_OUT = (  # what takes each stage back to the one before it, from the last stage down
+    _without_load_motor,
+    _without_digital_drive,
+    _without_compliance,
+    _without_rudder_feedback,
+    _without_linkage,
+)
+
+
+def stage_scenarios(scenario: Scenario) -> list[tuple[str, Scenario]]:
+    """(stage, scenario) for every stage of :data:`STAGES`, the first stage first."""
+    stages = [scenario]
+    for take_out in _TAKE_OUT:
+        stages.append(take_out(stages[-1]))
+    return [(name, sc) for (name, _), sc in zip(STAGES, reversed(stages), strict=True)]
+
+
+def ablation(scenarios: dict[str, Scenario], known: dict | None = None) -> dict:
+    """{experiment: {stage: {label: metrics}}} of every stage of each scenario, every run in
+    parallel (emasim.experiments.batch.run_all). ``known`` ({experiment: {label: metrics}})
+    gives the last stage's metrics when the scenario itself has already run."""
+    known = known or {}
+    runs = []
+    for name, scenario in scenarios.items():
+        for stage, staged in stage_scenarios(scenario):
+            if stage == STAGES[-1][0] and name in known:
+                continue
+            runs.extend((name, stage, label, single) for label, single in staged.variants())
+    results = run_all([run[3] for run in runs], labels=[run[2] for run in runs])
+    out = {name: {stage: {} for stage, _ in STAGES} for name in scenarios}
+    for (name, stage, label, _), result in zip(runs, results, strict=True):
+        out[name][stage][label] = result.metrics
+    for name, metrics in known.items():
+        if name in out:
+            out[name][STAGES[-1][0]] = metrics
+    return out
