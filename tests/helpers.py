@@ -5,7 +5,9 @@ the controller configs and :class:`emasim.sim.setup.Setup`) so the tests do not 
 scenario layer.
 """
 
+import importlib.util
 import math
+from pathlib import Path
 
 import numba as nb
 import numpy as np
@@ -18,6 +20,8 @@ from emasim.plant import actuator as A
 from emasim.plant.parameters import PlantParams
 from emasim.plant.presets import sea805
 from emasim.signals import ZERO, Step, encode
+from emasim.sim.core import new_workspace
+from emasim.sim.engine import plant_step
 from emasim.sim.setup import Setup, plant_facts
 
 facts_of = plant_facts  # what a controller design may know of a plant
@@ -89,3 +93,33 @@ def speed_setup(
 def step_signal(time_s: float, value: float) -> np.ndarray:
     """Encoded step from 0 to ``value`` (SI) at ``time_s``."""
     return encode([Step(time_s=time_s, final=value)])
+
+
+def integrate_plant(plant, x0, duration_s, h, rudder_load=ZERO):
+    """The plant (a PlantParams) from state x0 under plant_step, zero voltages and loads but
+    ``rudder_load``, in steps of h; returns (t, states), the states row by row."""
+    p = plant.pack()
+    x = x0.copy()
+    work = new_workspace()
+    n = round(duration_s / h)
+    states = np.empty((n + 1, A.N_STATE))
+    states[0] = x
+    for j in range(n):
+        plant_step(j * h, x, 0.0, 0.0, p, ZERO, ZERO, rudder_load, h, work)
+        states[j + 1] = x
+    return h * np.arange(n + 1), states
+
+
+def relative_error(simulated, expected):
+    """Largest deviation over the largest expected magnitude."""
+    return np.max(np.abs(simulated - expected)) / np.max(np.abs(expected))
+
+
+def module_at(relative: str):
+    """The Python file at ``relative`` (to the repository root) as a module: ``benchmarks/``
+    and ``docs/`` are not packages."""
+    path = Path(__file__).parents[1] / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

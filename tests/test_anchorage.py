@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 import pytest
+from helpers import integrate_plant, relative_error
 
 from emasim.interface import M_POSITION, M_VELOCITY, N_MEAS
 from emasim.plant import actuator as A
@@ -39,9 +40,6 @@ from emasim.plant.compliance import ComplianceParams
 from emasim.plant.linkage import N_HINGES
 from emasim.plant.presets import sea805, sea805_stand
 from emasim.plant.sensors import true_values
-from emasim.signals import ZERO
-from emasim.sim.core import new_workspace
-from emasim.sim.engine import plant_step
 
 K_ANCHOR = 6.0e7  # N/m: the bench's anchorage
 M_HOUSING = 12.0  # kg: the bench's body
@@ -105,22 +103,8 @@ def chain_stiffness(springs):
 
 
 def run(plant, x0, duration_s, h=H):
-    """Integrate the plant with plant_step and no loads from x0; returns (t, states)."""
-    p = plant.pack()
-    x = x0.copy()
-    work = new_workspace()
-    n = round(duration_s / h)
-    states = np.empty((n + 1, A.N_STATE))
-    states[0] = x
-    for j in range(n):
-        plant_step(j * h, x, 0.0, 0.0, p, ZERO, ZERO, ZERO, h, work)
-        states[j + 1] = x
-    return h * np.arange(n + 1), states
-
-
-def relative_error(simulated, expected):
-    """Largest deviation over the largest expected magnitude."""
-    return np.max(np.abs(simulated - expected)) / np.max(np.abs(expected))
+    """Integrate the plant with no loads from x0; returns (t, states)."""
+    return integrate_plant(plant, x0, duration_s, h)
 
 
 @pytest.mark.parametrize("mode", [0, 1])

@@ -1,11 +1,11 @@
 """emasim reproduce: every experiment, the paper's numbers beside ours, consistent files."""
 
-import importlib.util
 import json
 import tomllib
 from pathlib import Path
 
 import pytest
+from helpers import module_at
 from typer.testing import CliRunner
 
 from emasim.analysis.paper_report import EXPERIMENTS, HEADLINE, paper_results, reduction
@@ -13,16 +13,6 @@ from emasim.cli import app
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"
 ROOT = Path(__file__).parents[1]
-
-
-def readme_headline():
-    """``docs/readme_headline.py`` by path: ``docs/`` is not a package."""
-    spec = importlib.util.spec_from_file_location(
-        "readme_headline", ROOT / "docs" / "readme_headline.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +46,7 @@ def test_headline_has_the_five_figures_with_both_sides(report):
 def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     """The README's table is docs/headline.json rendered, and a fresh reproduction measures
     those numbers (runs are deterministic: tests/test_fingerprints.py)."""
-    module = readme_headline()
+    module = module_at("docs/readme_headline.py")
     stored = json.loads(module.STORE.read_text())
     readme = (ROOT / "README.md").read_text()
     block = readme[readme.index(module.BEGIN) + len(module.BEGIN) : readme.index(module.END)]
@@ -65,6 +55,9 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
             assert measured[key][side] == pytest.approx(item[side], rel=1e-9), (key, side)
+    # the README's verdict: on the realistic bench the hybrid beats PID on all five figures
+    assert all(item["hybrid_better"] for item in measured.values())
+    assert "the hybrid beats PID on all five figures" in " ".join(readme.split())
 
 
 def test_tables_agree_with_the_runs_and_the_paper(report):

@@ -29,14 +29,13 @@ import math
 
 import numpy as np
 import pytest
+from helpers import integrate_plant, relative_error
 
 from emasim.plant import actuator as A
 from emasim.plant.linkage import N_HINGES
 from emasim.plant.presets import sea805_stand
 from emasim.plant.shaft import ShaftParams
 from emasim.signals import ZERO, Constant, encode
-from emasim.sim.core import new_workspace
-from emasim.sim.engine import plant_step
 
 K_SHAFT = 2.0e4  # N m/rad: the bench's shaft and torque sensor
 J_DISK = 1.45  # kg m^2: the bench's inertia disk
@@ -92,17 +91,8 @@ def free_start(plant, theta_r):
 
 
 def run(plant, x0, duration_s, rudder_load=ZERO, h=H):
-    """Integrate the plant with plant_step from x0; returns (t, states)."""
-    p = plant.pack()
-    x = x0.copy()
-    work = new_workspace()
-    n = round(duration_s / h)
-    states = np.empty((n + 1, A.N_STATE))
-    states[0] = x
-    for j in range(n):
-        plant_step(j * h, x, 0.0, 0.0, p, ZERO, ZERO, rudder_load, h, work)
-        states[j + 1] = x
-    return h * np.arange(n + 1), states
+    """Integrate the plant from x0; returns (t, states)."""
+    return integrate_plant(plant, x0, duration_s, h, rudder_load)
 
 
 def angles(plant, states):
@@ -114,11 +104,6 @@ def sensor_torques(plant, states):
     """The torque sensor's reading, shaft_torque_of, along a trajectory (N m)."""
     p = plant.pack()
     return np.array([A.shaft_torque_of(x, p) for x in states])
-
-
-def relative_error(simulated, expected):
-    """Largest deviation over the largest expected magnitude."""
-    return np.max(np.abs(simulated - expected)) / np.max(np.abs(expected))
 
 
 def assert_no_contact(plant, states):

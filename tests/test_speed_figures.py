@@ -5,26 +5,17 @@ the README's block between the speed-figures markers with ``benchmarks/readme_fi
 These tests read the stored file and run no simulation.
 """
 
-import importlib.util
 import json
 import re
 from pathlib import Path
+
+from helpers import module_at
 
 ROOT = Path(__file__).parents[1]
 README = (ROOT / "README.md").read_text()
 
 
-def load_figures():
-    """``benchmarks/readme_figures.py`` by path: ``benchmarks/`` is not a package."""
-    spec = importlib.util.spec_from_file_location(
-        "readme_figures", ROOT / "benchmarks" / "readme_figures.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-figures = load_figures()
+figures = module_at("benchmarks/readme_figures.py")
 RESULTS = json.loads((ROOT / "benchmarks" / "results.json").read_text())
 
 # A timing figure: a number, then a unit of time or a factor faster.

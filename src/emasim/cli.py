@@ -83,7 +83,7 @@ def _fail(err: Exception) -> None:
 
 @app.command("list")
 def list_all() -> None:
-    """Show the shipped scenarios and the controllers of each loop."""
+    """Show the shipped scenarios, the controllers of each loop and the presets."""
     from .control.registry import CASCADES, CONTROLLERS, DESCRIPTIONS
     from .scenarios.loader import builtin_scenarios, read_scenario_file
 
@@ -104,6 +104,17 @@ def list_all() -> None:
     for name, loops in CASCADES.items():
         chain = " over ".join(loops[lp]["name"] for lp in ("position", "speed"))
         table.add_row("cascade", name, f"position {chain} over the current loop")
+    console.print(table)
+    from .plant.presets import PRESETS, SENSOR_PRESETS
+
+    table = Table(title="presets (plant.preset, sensors)")
+    table.add_column("section")
+    table.add_column("name")
+    table.add_column("what it is")
+    for section, presets in (("plant", PRESETS), ("sensors", SENSOR_PRESETS)):
+        for name, make in presets.items():
+            summary = " ".join((make.__doc__ or "").split("\n\n")[0].split())
+            table.add_row(section, name, summary)
     console.print(table)
 
 

@@ -17,7 +17,8 @@ angle, as a step or a sine. Every window and band is stated here, once:
   mean/std/RMS, velocity fluctuation (half peak-to-peak about its trend) and velocity error
   statistics; the peak rudder velocity over the run;
 * rudder sine (tables 6-7): max tracking error and phase lag after the first BENCH_STEADY_S,
-  whether the rudder first moves against the command (below -REVERSE_DEG in the first second),
+  whether the rudder first moves against the command (below -REVERSE_DEG in the first second)
+  and how far (reverse_motion_deg, 0 when it never goes below 0),
   the peak velocity in the first second, the velocity fluctuation (half peak-to-peak of the
   velocity about its best-fitting sine) after BENCH_STEADY_S.
 
@@ -297,6 +298,7 @@ def bench_sine_metrics(result) -> dict:
         "phase_lag_deg": track.phase_lag_deg,
         "lag_s": track.lag_s,
         "initial_reverse_motion": float(angle[first_second].min() < -REVERSE_DEG),
+        "reverse_motion_deg": float(max(0.0, -angle[first_second].min())),
         "peak_velocity_deg_s": m.peak_value(t, rate, start),
         "velocity_fluctuation_deg_s": m.sine_fluctuation(t, rate, frequency, steady),
     }

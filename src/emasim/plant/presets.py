@@ -212,7 +212,7 @@ BENCH_DISK_INERTIA_KGM2 = 1.45  # ours: the inertia disk, of the 1.5 kg m^2 rudd
 
 
 def sea805_bench(clearance_mm: float = 0.01) -> PlantParams:
-    """The virtual bench made real: sea805-linkage with the drive's rated limits, the
+    """The realistic bench: sea805-linkage with the drive's rated limits, the
     compliance of the screw and the anchorage, the rudder shaft's torsion and the load motor.
 
     Every number is ours (the paper names flexibility as the bench's main cause of
