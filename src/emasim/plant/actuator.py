@@ -299,8 +299,11 @@ def shaft_torque_of(x, p):
 def rudder_side(x, t_rudder, p, dx):
     """Torque on the rocker arm (N m, driving positive deflection) from the rudder's stops
     and the load, through the shaft's torsion when the plant has it; writes the derivatives of
-    the disk's and the load motor's states (zero without them). t_rudder is the scenario's
-    rudder load T(t), opposing positive deflection."""
+    the disk's and the load motor's states when the plant has any of the three (zero for an
+    absent one; a plant with none leaves those rows as they are, zero in a fresh workspace).
+    t_rudder is the scenario's rudder load T(t), opposing positive deflection."""
+    if p[P_LOAD_MOTOR] == 0.0 and p[P_SHAFT] == 0.0 and p[P_STOPS] == 0.0:
+        return -t_rudder  # the ideal load alone
     theta, omega = rudder_motion(x, p)
     if p[P_LOAD_MOTOR] != 0.0:
         at = x[X_DISK] if p[P_SHAFT] != 0.0 else theta
@@ -384,7 +387,8 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
         centripetal = (q[L.L0] + x[X_XL]) * swing * swing
         dx[X_VL] = (f_rod + f_stop + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
     else:
-        dx[X_VL] = (f_rod + f_stop - f_load + t_rocker / p[P_ARM] - p[P_CL] * x[X_VL]) / p[P_ML]
+        f_rudder = t_rocker / p[P_ARM]
+        dx[X_VL] = (f_rod + f_stop - f_load + f_rudder - p[P_CL] * x[X_VL]) / p[P_ML]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
