@@ -59,6 +59,7 @@ BENCH_STEP_ROWS = {
 BENCH_SINE_ROWS = {
     "tracking_error_deg": ("tracking_error_deg", "deg"),
     "initial_reverse_motion": ("initial_reverse_motion", "yes/no"),
+    "reverse_motion_deg": ("reverse_motion_deg", "deg"),  # not in the paper: how far back
     "peak_velocity_deg_s": ("peak_velocity_deg_s", "deg/s"),
     "velocity_fluctuation_deg_s": ("velocity_fluctuation_deg_s", "deg/s"),
 }
@@ -92,23 +93,7 @@ HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
     ),
 }
 PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
-# the ablation's columns: the headline metrics of each bench table, then its other magnitudes
-ABLATION_COLUMNS = {
-    "bench_step": (
-        "steady_error_rms_deg",
-        "chatter_amplitude_deg",
-        "velocity_fluctuation_deg_s",
-        "settling_time_s",
-        "rise_time_s",
-        "peak_velocity_deg_s",
-    ),
-    "bench_sine": (
-        "tracking_error_deg",
-        "velocity_fluctuation_deg_s",
-        "initial_reverse_motion",
-        "peak_velocity_deg_s",
-    ),
-}
+ABLATED_TABLES = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
 
 
 def paper_results() -> dict:
@@ -230,31 +215,31 @@ def ablation_rows(ablation: dict) -> list[dict]:
     rows = []
     for name, stages in ablation.items():
         key = name.replace("-", "_")
-        table_rows = BENCH_STEP_ROWS if key == "bench_step" else BENCH_SINE_ROWS
         for stage, metrics in stages.items():
-            for row in bench_table(paper[key], metrics, table_rows):
+            for row in bench_table(paper[key], metrics, ABLATED_TABLES[key]):
                 rows.append({"experiment": key, "stage": stage, **row})
     return rows
 
 
+def _finite(value) -> bool:
+    return isinstance(value, float) and math.isfinite(value)
+
+
 def ablation_moves(rows: list[dict]) -> list[str]:
-    """For each column of ABLATION_COLUMNS and controller, the stage that moves it most from
-    the stage before, as report lines (measured: read off the rows)."""
+    """For each metric of the ablated tables and each controller, the stage that moves it
+    most from the stage before, as report lines (measured: read off the rows)."""
     lines = []
-    for key, columns in ABLATION_COLUMNS.items():
-        for metric in columns:
+    for key, table_rows in ABLATED_TABLES.items():
+        for metric, _ in table_rows.values():
             series = [r for r in rows if r["experiment"] == key and r["metric"] == metric]
             for side, label in (("ours_pid", PID_LABEL), ("ours_hybrid", HYBRID_LABEL)):
                 values = [(r["stage"], r[side]) for r in series]
                 steps = [
                     (abs(after - before), stage, before, after)
                     for (_, before), (stage, after) in zip(values, values[1:], strict=False)
-                    if isinstance(before, float)
-                    and isinstance(after, float)
-                    and math.isfinite(before)
-                    and math.isfinite(after)
+                    if _finite(before) and _finite(after)
                 ]
-                if steps:
+                if steps and max(steps)[0] > 0.0:
                     _, stage, before, after = max(steps)
                     lines.append(
                         f"{key} {metric}, {label}: most moved by {stage} "
@@ -264,18 +249,21 @@ def ablation_moves(rows: list[dict]) -> list[str]:
 
 
 def _ablation_markdown(rows: list[dict], key: str) -> str:
-    columns = ABLATION_COLUMNS[key]
+    """One row per metric of the table, one column per stage, PID / hybrid in each cell."""
     mine = [r for r in rows if r["experiment"] == key]
     stages = list(dict.fromkeys(r["stage"] for r in mine))
     value = {(r["stage"], r["metric"]): r for r in mine}
-    header = ["stage", *(f"{c} (PID / hybrid)" for c in columns)]
 
-    def pair(stage: str, column: str, side: str) -> str:
-        row = value[stage, column]
+    def pair(stage: str, metric: str, side: str) -> str:
+        row = value[stage, metric]
         return f"{_fmt(row[f'{side}_pid'])} / {_fmt(row[f'{side}_hybrid'])}"
 
-    body = [["paper bench"] + [pair(stages[0], c, "paper") for c in columns]]
-    body += [[stage] + [pair(stage, c, "ours") for c in columns] for stage in stages]
+    header = ["metric (PID / hybrid)", "unit", "paper bench", *stages]
+    body = [
+        [metric, unit, pair(stages[0], metric, "paper")]
+        + [pair(stage, metric, "ours") for stage in stages]
+        for metric, unit in ABLATED_TABLES[key].values()
+    ]
     return markdown_table(header, body)
 
 
@@ -437,7 +425,7 @@ def write_report(
             + "; ".join(f"**{name}**: {text}" for name, text in stages)
             + ".",
         ]
-        for key in ABLATION_COLUMNS:
+        for key in ABLATED_TABLES:
             if any(r["experiment"] == key for r in tables["ablation"]):
                 parts += [
                     f"### {key.replace('_', '-')}",
