@@ -144,6 +144,20 @@ def test_the_inverter_voltage_holds_on_a_users_current_law():
     assert np.all(flagged(result, LIMIT_VOLTAGE))
 
 
+def test_a_library_law_that_limits_itself_is_counted_at_the_limit():
+    """The library's PI limits its own output to the current limit, so the drive never cuts
+    it; the time at the limit must still agree with the current command's trace."""
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=["duration_s=0.05"])
+    result = simulate(scenario.setup())
+    at_limit = np.abs(result["iq_ref_A"]) >= scenario.plant.motor.max_current_A
+    assert at_limit.any()
+    assert np.array_equal(flagged(result, LIMIT_CURRENT), at_limit)
+    dt = result.t[1] - result.t[0]
+    assert limit_metrics(result)["current_saturation_time_s"] == pytest.approx(
+        np.count_nonzero(at_limit) * dt
+    )
+
+
 @pytest.mark.parametrize(
     "setting, words",
     [

@@ -14,8 +14,9 @@ Measurement vector ``meas`` (what sensors report at a tick, SI units):
 Reference vector ``ref`` given to a controller: R_VALUE, R_RATE (first derivative) and
 R_ACCEL (second derivative) of its set-point, in the units of the loop.
 
-The drive's limit flags ``LIMIT_*``: bits of the trace column limit_flags, which of the drive's
-limits acted at a tick (emasim.plant.ratings, emasim.sim.engine.control_tick).
+The drive's limit flags ``LIMIT_*``: bits of the trace column limit_flags, the drive's limits
+that a command sat at in a tick, whether the drive cut it or the law had limited it already
+(emasim.plant.ratings, emasim.sim.engine.control_tick).
 
 Output vector ``out`` written by a controller: O_VALUE, the command for the inner loop, and
 O_RATE, its time derivative as far as the controller knows it (used as feed-forward). The
@@ -54,6 +55,6 @@ O_UD = 0  # the current loop's out: d-axis voltage
 O_UQ = 1  # ... and q-axis voltage
 N_OUT = 2
 
-LIMIT_CURRENT = 1  # the current command was cut to the current limit in force
-LIMIT_VOLTAGE = 2  # the voltage was cut to the inverter's Udc / sqrt(3)
-LIMIT_SPEED = 4  # the speed command was cut to max_speed, or the rated-speed fold-back acted
+LIMIT_CURRENT = 1  # the current command at the current limit in force
+LIMIT_VOLTAGE = 2  # the voltage at the inverter's Udc / sqrt(3)
+LIMIT_SPEED = 4  # the speed command at max_speed, or the current at the rated-speed fold-back

@@ -14,6 +14,7 @@ Controllers arrive as first-class function values (:data:`emasim.control.slot.CO
 the loop is compiled once, eagerly and cached on disk, whatever the controllers.
 """
 
+import math
 import time
 
 import numpy as np
@@ -97,6 +98,7 @@ LOOP_POSITION_CURRENT = 2  # position controller commands the current loop direc
 FEEDBACK_ROD = 0  # the position loop closes on the rod's displacement sensor
 FEEDBACK_RUDDER = 1  # ... on the rudder encoder, through the rigid kinematics' rod position
 
+VOLTAGE_ROUND_OFF = 1e-9  # a voltage this close to Udc / sqrt(3) is at the inverter's limit
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
 
 # status codes returned by run_ticks
@@ -127,7 +129,8 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
     The drive's limits hold whatever a slot commands, library or user-written: a speed command
     within +-max_speed, a current command within the bounds of :func:`current_bounds`, the
     voltage within the inverter's Udc/sqrt(3); ``drive`` receives the limit in force and the
-    limits that acted, and its I^2 t heat advances on the measured current. ``laws`` are the
+    limits the commands sat at (cut by the drive, or already at the limit: the library's laws
+    limit their own outputs), and its I^2 t heat advances on the measured current. ``laws`` are the
     slots' compiled functions, ``slots`` their (params, state); ``scratch`` is (meas, ref,
     out), reused from tick to tick.
     """
@@ -152,7 +155,7 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
         r = np.nan  # no speed reference in this structure
     else:
         w_max = p[A.P_WMAX]
-        if abs(r) > w_max:
+        if abs(r) >= w_max:
             flags |= LIMIT_SPEED
         r = clamp(r, -w_max, w_max)
         ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = r, dr, 0.0
@@ -160,13 +163,13 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
         laws[SPEED_SLOT](state, params, meas, ref, ts, out)
         command = out[O_VALUE]
     iq_ref = clamp(command, i_low, i_high)
-    if iq_ref != command:
+    if iq_ref >= i_high or iq_ref <= i_low:  # at a bound: the current's, or the fold-back's
         flags |= LIMIT_CURRENT if abs(iq_ref) >= i_lim else LIMIT_SPEED
     ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = iq_ref, 0.0, 0.0
     params, state = slots[CURRENT_SLOT]
     laws[CURRENT_SLOT](state, params, meas, ref, ts, out)
     u_d, u_q = limit_voltage(out[O_UD], out[O_UQ], p[A.P_UDC])
-    if u_d != out[O_UD] or u_q != out[O_UQ]:
+    if math.hypot(u_d, u_q) >= (1.0 - VOLTAGE_ROUND_OFF) * p[A.P_UDC] / math.sqrt(3.0):
         flags |= LIMIT_VOLTAGE
     if p[A.P_RATINGS] != 0.0:
         capacity = p[A.P_HEAT_CAPACITY]

@@ -17,7 +17,9 @@ CONTROL_COLUMNS = (
     Quantity("uq_V", "V", "q-axis stator voltage command, limited by the inverter"),
     Quantity("current_limit_A", "A", "the drive's current limit in force (emasim.plant.ratings)"),
     Quantity(
-        "limit_flags", "1", "the drive's limits that acted: LIMIT_* bits of emasim.plant.ratings"
+        "limit_flags",
+        "1",
+        "the drive's limits the commands sat at: LIMIT_* bits of emasim.interface",
     ),
 )
 LOAD_COLUMNS = (
