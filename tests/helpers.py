@@ -18,7 +18,7 @@ from emasim.control.slot import CONTROLLER_SIG, Compiled, PlantFacts
 from emasim.interface import O_RATE, O_VALUE
 from emasim.plant import actuator as A
 from emasim.plant.parameters import PlantParams
-from emasim.plant.presets import sea805
+from emasim.plant.presets import sea805, sea805_stand
 from emasim.signals import ZERO, Step, encode
 from emasim.sim.core import new_workspace
 from emasim.sim.engine import plant_step
@@ -123,3 +123,17 @@ def module_at(relative: str):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def conservative_stand(width_mm: float, gap_stiffness_N_per_m: float) -> PlantParams:
+    """sea805-stand with nothing that dissipates: no friction, no motor or load damping, a
+    lossless screw, an undamped gap of ``width_mm`` and the given stiffness."""
+    plant = sea805_stand()
+    plant.friction.model = "none"
+    plant.motor.viscous_Nms_per_rad = 0.0
+    plant.drivetrain.gear_efficiency = plant.drivetrain.screw_efficiency = 1.0
+    plant.backlash.width_mm = width_mm
+    plant.backlash.stiffness_N_per_m = gap_stiffness_N_per_m
+    plant.backlash.damping_ratio = 0.0
+    plant.load.viscous_Ns_per_m = 0.0
+    return plant

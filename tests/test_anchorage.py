@@ -31,14 +31,14 @@ import math
 
 import numpy as np
 import pytest
-from helpers import integrate_plant, relative_error
+from helpers import conservative_stand, integrate_plant, relative_error
 
 from emasim.interface import M_POSITION, M_VELOCITY, N_MEAS
 from emasim.plant import actuator as A
 from emasim.plant.anchorage import AnchorageParams
 from emasim.plant.compliance import ComplianceParams
 from emasim.plant.linkage import N_HINGES
-from emasim.plant.presets import sea805, sea805_stand
+from emasim.plant.presets import sea805
 from emasim.plant.sensors import true_values
 
 K_ANCHOR = 6.0e7  # N/m: the bench's anchorage
@@ -55,15 +55,8 @@ TOL = 1e-6  # of the amplitude (module docstring)
 def locked_rotor_plant(width_mm=0.0, anchorage_damping=0.0, compliance=False):
     """sea805-stand made conservative with a locked rotor, on the anchorage (module
     docstring); with ``compliance`` the series spring behind the gap."""
-    plant = sea805_stand()
-    plant.friction.model = "none"
+    plant = conservative_stand(width_mm, K_GAP)
     plant.motor.inertia_kgm2 = LOCKED
-    plant.motor.viscous_Nms_per_rad = 0.0
-    plant.drivetrain.gear_efficiency = plant.drivetrain.screw_efficiency = 1.0
-    plant.backlash.width_mm = width_mm
-    plant.backlash.stiffness_N_per_m = K_GAP
-    plant.backlash.damping_ratio = 0.0
-    plant.load.viscous_Ns_per_m = 0.0
     plant.anchorage = AnchorageParams(
         stiffness_N_per_m=K_ANCHOR, damping_Ns_per_m=anchorage_damping, housing_mass_kg=M_HOUSING
     )

@@ -29,11 +29,10 @@ import math
 
 import numpy as np
 import pytest
-from helpers import integrate_plant, relative_error
+from helpers import conservative_stand, integrate_plant, relative_error
 
 from emasim.plant import actuator as A
 from emasim.plant.linkage import N_HINGES
-from emasim.plant.presets import sea805_stand
 from emasim.plant.shaft import ShaftParams
 from emasim.signals import ZERO, Constant, encode
 
@@ -50,16 +49,9 @@ TOL = 1e-6  # of the amplitude (module docstring)
 def shaft_plant(width_mm=10.0, locked=False, shaft_damping=0.0):
     """sea805-stand made conservative (module docstring) with the rudder shaft's torsion;
     ``locked`` locks the rotor."""
-    plant = sea805_stand()
-    plant.friction.model = "none"
+    plant = conservative_stand(width_mm, K_GAP)
     if locked:
         plant.motor.inertia_kgm2 = LOCKED
-    plant.motor.viscous_Nms_per_rad = 0.0
-    plant.drivetrain.gear_efficiency = plant.drivetrain.screw_efficiency = 1.0
-    plant.backlash.width_mm = width_mm
-    plant.backlash.stiffness_N_per_m = K_GAP
-    plant.backlash.damping_ratio = 0.0
-    plant.load.viscous_Ns_per_m = 0.0
     plant.load.rudder_inertia_kgm2 = J_ROCKER
     plant.rudder_shaft = ShaftParams(
         stiffness_Nm_per_rad=K_SHAFT, damping_Nms_per_rad=shaft_damping, disk_inertia_kgm2=J_DISK
