@@ -900,12 +900,8 @@ def kill(proc: subprocess.Popen) -> None:
 
 def wait_for(condition, proc: subprocess.Popen) -> None:
     """Poll until ``condition`` holds or ``proc`` has ended; the caller's checks then say
-    which. No speed is asserted: a process that does neither within TIMEOUT_S hangs, and is
-    reported as one (subprocess.TimeoutExpired), as ``communicate`` reports it."""
-    deadline = time.monotonic() + TIMEOUT_S
+    which. No time is measured: the run ends by itself, which bounds the wait."""
     while not condition() and proc.poll() is None:
-        if time.monotonic() > deadline:
-            raise subprocess.TimeoutExpired(proc.args, TIMEOUT_S)
         time.sleep(0.005)
 
 
