@@ -12,6 +12,7 @@ import stat
 import subprocess
 import sys
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -23,8 +24,10 @@ from emasim.output import (
     fresh_folder,
     is_emasim_folder,
     json_text,
+    remove_own,
     write_file,
     write_folder,
+    write_marker,
 )
 
 
@@ -232,3 +235,40 @@ def test_a_dead_runs_old_copy_holding_a_users_file_is_kept(tmp_path):
     (old / "mine.txt").write_text("keep")
     assert clean_leftovers(tmp_path) == []
     assert (old / "mine.txt").read_text() == "keep"
+
+
+def test_removal_deletes_only_the_manifests_files_never_through_a_link(tmp_path):
+    """remove_own: a manifest naming a file outside the folder, or one reached through a
+    link to a user's folder, deletes neither; a file not in the manifest stays too."""
+    users = tmp_path / "users"
+    users.mkdir()
+    (users / "thesis.tex").write_text("years of work")
+    (tmp_path / "outside.txt").write_text("mine")
+    folder = write_folder(tmp_path / "run", fill)
+    (folder / "via").symlink_to(users, target_is_directory=True)
+    (folder / "mine.txt").write_text("keep")
+    write_marker(folder, "run", files=["a.txt", "via/thesis.tex", "../outside.txt"])
+    assert not remove_own(folder)
+    assert (users / "thesis.tex").read_text() == "years of work"
+    assert (tmp_path / "outside.txt").read_text() == "mine"
+    assert (folder / "mine.txt").read_text() == "keep"
+    assert not (folder / "a.txt").exists() and not (folder / MARKER).exists()
+
+
+def test_a_file_put_into_a_replaced_result_at_the_last_moment_is_kept(tmp_path, monkeypatch):
+    """--force checks for foreign files, then moves the old result aside and removes it: a
+    file that appears between the two stays in the moved-aside folder."""
+    target = write_folder(tmp_path / "run", fill)
+    real_rename = Path.rename
+
+    def rename_then_add(self, other):
+        moved = real_rename(self, other)
+        if ".old-" in Path(other).name:
+            (Path(other) / "late.txt").write_text("keep")
+        return moved
+
+    monkeypatch.setattr(Path, "rename", rename_then_add)
+    write_folder(target, fill, force=True)
+    (kept,) = [p for p in tmp_path.iterdir() if ".old-" in p.name]
+    assert (kept / "late.txt").read_text() == "keep"
+    assert is_emasim_folder(target)

@@ -17,7 +17,8 @@ Writing is atomic. A folder is built under a temporary name beside its target,
 anything took the place meanwhile, so two concurrent runs to one place either both succeed or
 the second is refused with one line. A kill at any moment leaves the target complete or absent;
 the temporaries of processes that no longer run are removed by the next write in that folder:
-only folders of this exact pattern that hold the marker, or are empty. A file is written the
+only folders of this exact pattern that hold the marker, or are empty, and of a replaced
+result (``.old-``) only the files its manifest lists (:func:`remove_own`). A file is written the
 same way, inside such a temporary marker folder, and hard-linked (or, with ``force``, renamed)
 into place; so no leftover is ever a bare file, and a bare file is never removed.
 
@@ -102,6 +103,33 @@ def _files_in(folder: Path) -> list[str]:
     return sorted(names)
 
 
+def remove_own(folder: Path) -> bool:
+    """Delete from an emasim folder only the files its marker's manifest lists, then the
+    marker and the folders left empty; anything else stays, with the folders that hold it.
+    A manifest entry that leaves the folder, or reaches through a link, is skipped. True when
+    the folder is gone."""
+    base = folder.resolve()
+    try:
+        listed = json.loads((folder / MARKER).read_text())["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        listed = []
+    for name in listed if isinstance(listed, list) else []:
+        target = folder / str(name)
+        inside = target.parent.resolve() == base.joinpath(str(name)).parent
+        if inside and (target.is_symlink() or target.is_file()):
+            with contextlib.suppress(OSError):
+                target.unlink()  # a link itself, never what it points to
+    with contextlib.suppress(OSError):
+        (folder / MARKER).unlink()
+    for root, dirs, _ in os.walk(folder, topdown=False):
+        for name in dirs:
+            with contextlib.suppress(OSError):
+                os.rmdir(Path(root, name))  # only an empty folder (a link is not one)
+    with contextlib.suppress(OSError):
+        os.rmdir(folder)
+    return not os.path.lexists(folder)
+
+
 def _is_empty_folder(path: Path) -> bool:
     return path.is_dir() and not path.is_symlink() and not any(path.iterdir())
 
@@ -181,9 +209,11 @@ def clean_leftovers(folder: Path) -> list[Path]:
     """Remove the temporaries that killed emasim processes left in ``folder``; return them.
 
     Only folders of the module's temporary pattern whose process no longer runs, and of
-    those only one that holds the marker (a ``.old-`` one only with nothing outside its
-    manifest), or an empty one (``os.rmdir``, which cannot remove a file). A file is never
-    removed: nothing could prove it emasim's (write_file's temporaries are marker folders).
+    those only: a ``.tmp-`` one that holds the marker (a folder that process made with a fresh
+    name and filled, never published); of a ``.old-`` one (a published result being
+    replaced), the files of its manifest (:func:`remove_own`); an empty one (``os.rmdir``,
+    which cannot remove a file). A bare file is never removed: nothing could prove it
+    emasim's (write_file's temporaries are marker folders).
     """
     removed = []
     if not folder.is_dir():
@@ -193,8 +223,11 @@ def clean_leftovers(folder: Path) -> list[Path]:
         if match is None or _alive(int(match["pid"])) or not entry.is_dir() or entry.is_symlink():
             continue
         with contextlib.suppress(OSError):
-            if is_emasim_folder(entry) and (".tmp-" in entry.name or not foreign_files(entry)):
+            if is_emasim_folder(entry) and ".tmp-" in entry.name:
                 shutil.rmtree(entry)
+            elif is_emasim_folder(entry):
+                if not remove_own(entry):
+                    continue  # a user's file in it keeps it
             elif _is_empty_folder(entry):
                 os.rmdir(entry)  # killed before its marker: empty, and rmdir removes no file
             else:
@@ -290,7 +323,7 @@ def _move_into_place(tmp: Path, path: Path, force: bool, what: str, refuse: bool
             old = _temporary(path, "old")
             path.rename(old)
             tmp.rename(path)
-            shutil.rmtree(old, ignore_errors=True)
+            remove_own(old)  # its manifest's files only: one put in meanwhile stays
             return True
         try:
             tmp.rename(path)  # fails if a non-empty folder or a file took the place meanwhile
@@ -343,7 +376,7 @@ def write_file(
     except OSError as err:
         raise _os_error(what, path, err) from None
     finally:
-        shutil.rmtree(folder, ignore_errors=True)
+        remove_own(folder)  # the temporary file (its manifest) and the marker
     return path
 
 
