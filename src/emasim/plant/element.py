@@ -19,6 +19,7 @@ the plant's element order. Index constants (``X_IQ``, ``P_KB``) are then looked 
 module-level constants.
 """
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -28,6 +29,12 @@ from ..config import MM, RPM
 
 RATED_RUNAWAY = 20.0  # a rated quantity (current, speed) this many times over is a runaway
 FAR_RUNAWAY = 1e3  # a position this many strokes (or a state this many natural scales) away
+
+
+def damping_for_ratio(zeta: float, stiffness: float, mass: float) -> float:
+    """c = 2 zeta sqrt(k m): the damping that gives a mass (or inertia) m on a spring k the
+    damping ratio zeta (SI, N s/m or N m s/rad)."""
+    return 2.0 * zeta * math.sqrt(stiffness * mass)
 
 
 def rod_position_bound(plant) -> float:

@@ -17,7 +17,7 @@ step h the bristle equation is linear in z and has the exact solution used by
 import math
 
 from ..jit import njit
-from .element import FAR_RUNAWAY, Element, Quantity, State
+from .element import FAR_RUNAWAY, Element, Quantity, State, damping_for_ratio
 
 EXP_ZERO = 746.0  # exp(-x) rounds to exactly 0.0 for x > 745.14
 
@@ -97,7 +97,7 @@ def bristle_damping_for_ratio(zeta: float, sigma0: float, inertia: float, sigma2
     The 1995 choice sigma1 = sqrt(sigma0) holds only for a 1 kg mass. Raises ValueError if the
     result is negative (sigma2 alone already over-damps the mode at that zeta).
     """
-    sigma1 = 2.0 * zeta * math.sqrt(sigma0 * inertia) - sigma2
+    sigma1 = damping_for_ratio(zeta, sigma0, inertia) - sigma2
     if sigma1 < 0.0:
         raise ValueError(
             f"friction.bristle_damping_ratio={zeta} gives sigma1 < 0 with sigma2={sigma2}; "

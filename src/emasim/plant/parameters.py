@@ -20,6 +20,7 @@ from . import linkage as L
 from .anchorage import AnchorageParams
 from .compliance import ComplianceParams
 from .drivetrain import transmission_ratio
+from .element import damping_for_ratio
 from .friction import bristle_damping_for_ratio
 from .linkage import LinkageParams
 from .load_motor import LoadMotorParams
@@ -373,7 +374,7 @@ class PlantParams(Strict):
         p[A.P_W_SMOOTH] = f.smoothing_speed_rad_s
         p[A.P_HALF_GAP] = 0.5 * b.width_mm * MM
         p[A.P_KB] = b.stiffness_N_per_m
-        p[A.P_CB] = 2.0 * b.damping_ratio * math.sqrt(b.stiffness_N_per_m * reduced)
+        p[A.P_CB] = damping_for_ratio(b.damping_ratio, b.stiffness_N_per_m, reduced)
         p[A.P_ML] = self.load_mass_kg
         p[A.P_CL] = ld.viscous_Ns_per_m
         p[A.P_ARM] = ld.rudder_arm_mm * MM

@@ -10,6 +10,8 @@ import math
 from .anchorage import AnchorageParams
 from .compliance import ComplianceParams
 from .contact import ContactParams
+from .drivetrain import transmission_ratio
+from .element import damping_for_ratio
 from .linkage import LinkageParams
 from .load_motor import LoadMotorParams
 from .parameters import (
@@ -25,11 +27,6 @@ from .parameters import (
 from .ratings import RatingsParams
 from .shaft import ShaftParams
 from .stops import EndStopParams
-
-
-def damping_for_ratio(zeta: float, stiffness: float, mass: float) -> float:
-    """c = 2 zeta sqrt(k m): the damping that gives a mass m on a spring k the ratio zeta."""
-    return 2.0 * zeta * math.sqrt(stiffness * mass)
 
 
 def paper_motor() -> MotorParams:
@@ -162,7 +159,7 @@ def sea805_end_stops() -> EndStopParams:
     rudder through the 238.7 mm arm (95 kg m^2).
     """
     motor, drivetrain, rudder = paper_motor(), sea805_drivetrain(), lumped_rudder()
-    k = drivetrain.screw_lead_mm * 1e-3 / (2.0 * math.pi * drivetrain.gear_ratio)
+    k = transmission_ratio(drivetrain.screw_lead_mm * 1e-3, drivetrain.gear_ratio)
     motor_mass = motor.inertia_kgm2 / k**2
     arm = rudder.rudder_arm_mm * 1e-3
     return EndStopParams(
