@@ -258,6 +258,24 @@ def test_load_recovery(reference):
     assert result.dip == pytest.approx(-d, rel=1e-12)
     assert result.dip_time == pytest.approx(0.0, abs=1e-12)
     assert result.recovery_time == pytest.approx(tau * math.log(d / band), rel=1e-6)
+    assert result.band == band
+
+
+@pytest.mark.parametrize(("fraction", "band"), [(0.1, 0.02), (0.01, 0.01), (0.0, 0.01)])
+def test_load_recovery_band_sized_to_the_dip(fraction, band):
+    """band = max(floor, dip_fraction |dip|): 10 % of a 0.2 dip is 0.02, 1 % is below the floor."""
+    d, tau, t_load = 0.2, 0.05, 0.3
+    t = uniform_grid(1.0, 1e-5)
+    y = -np.where(t < t_load, 0.0, d * np.exp(-(t - t_load) / tau))
+    result = load_recovery(t, y, 0.0, t_load=t_load, band=0.01, dip_fraction=fraction)
+    assert result.band == pytest.approx(band, rel=1e-12)
+    assert result.recovery_time == pytest.approx(tau * math.log(d / band), rel=1e-6)
+
+
+def test_load_recovery_never_leaves_the_band():
+    t = uniform_grid(1.0, 1e-4)
+    result = load_recovery(t, 0.001 * np.sin(20 * t), 0.0, t_load=0.2, band=0.01)
+    assert result.recovery_time == 0.0
 
 
 def test_load_recovery_not_recovered_and_positive_dip():
@@ -302,6 +320,10 @@ Y = T.copy()
         (lambda: load_recovery(T, Y, 0.0, t_load=0.5, band=0.1, t_end=0.4), "t_end must be >"),
         (lambda: load_recovery(T, Y, "x", t_load=0.5, band=0.1), "reference must be a finite"),
         (lambda: load_recovery(T, Y, Y, t_load=0.5, band=np.nan), "band must be a finite"),
+        (
+            lambda: load_recovery(T, Y, Y, t_load=0.5, band=0.1, dip_fraction=-0.1),
+            "dip_fraction must be a finite number >= 0",
+        ),
         (lambda: step_info(T, Y, dead_zone_threshold=0.0), "threshold must be"),
     ],
 )

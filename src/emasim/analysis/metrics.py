@@ -76,11 +76,13 @@ class SineTracking:
 
 @dataclass(frozen=True, slots=True)
 class LoadRecovery:
-    """Response to a load step: largest deviation, its time and the recovery time (s)."""
+    """Response to a load step: largest deviation, its time, the recovery time (s) and the
+    recovery band that time was measured against (unit of the output)."""
 
     dip: float
     dip_time: float
     recovery_time: float
+    band: float
 
 
 # --------------------------------------------------------------------------- validation
@@ -709,6 +711,7 @@ def load_recovery(
     t_load: float,
     band: float,
     t_end: float | None = None,
+    dip_fraction: float = 0.0,
 ) -> LoadRecovery:
     """Dip and recovery of a regulated output after a load step.
 
@@ -723,18 +726,23 @@ def load_recovery(
     t_load : float
         Time of the load step in s, in ``[t[0], t[-1])``.
     band : float
-        Recovery band, absolute, unit of ``y``, ``> 0``.
+        Recovery band, absolute, unit of ``y``, ``> 0``: with ``dip_fraction`` the floor
+        of the band.
     t_end : float, optional
         End of the evaluation in s; default ``t[-1]``.
+    dip_fraction : float
+        Fraction of ``|dip|``, ``>= 0``, that widens the band to the disturbance; default 0
+        (the band is ``band``).
 
     Returns
     -------
     LoadRecovery
         Over the samples with ``t_load <= t <= t_end``, with ``e = y - reference``:
         ``dip`` = the signed ``e`` of largest magnitude (unit of ``y``); ``dip_time`` =
-        its time from ``t_load`` in s; ``recovery_time`` = the time in s from ``t_load``
-        after which ``|e| <= band`` up to ``t_end``, last exit interpolated linearly,
-        ``nan`` if ``|e| > band`` at the last sample.
+        its time from ``t_load`` in s; ``band`` = ``max(band, dip_fraction * |dip|)``
+        (unit of ``y``); ``recovery_time`` = the time in s from ``t_load`` after which
+        ``|e| <= band`` up to ``t_end``, last exit interpolated linearly, 0 if ``e`` never
+        leaves the band, ``nan`` if ``|e| > band`` at the last sample.
     """
     t = _time(t)
     y = _signal("y", y, t)
@@ -743,13 +751,18 @@ def load_recovery(
     reference = _signal("reference", reference, t)
     t_load = _instant("t_load", t_load, t)
     band = _positive("band", band)
+    dip_fraction = _scalar("dip_fraction", dip_fraction)
+    if dip_fraction < 0.0:
+        raise ValueError(f"dip_fraction must be a finite number >= 0, got {dip_fraction!r}")
     t_end = float(t[-1]) if t_end is None else _scalar("t_end", t_end)
     if t_end <= t_load:
         raise ValueError(f"t_end must be > t_load = {t_load}, got {t_end}")
     tw, ew = _windowed(t, (t_load, t_end), y - reference)
     k = int(np.argmax(np.abs(ew)))
+    band = max(band, dip_fraction * abs(float(ew[k])))
     return LoadRecovery(
         dip=float(ew[k]),
         dip_time=float(tw[k] - t_load),
         recovery_time=_last_exit(tw, ew, band) - t_load,
+        band=band,
     )
