@@ -19,7 +19,15 @@ from pathlib import Path
 
 from .. import __version__
 from ..output import json_text
-from .report import BENCH_SETTLING_BAND, BENCH_STEADY_S, DEAD_ZONE_MM, STEADY_FRACTION
+from .report import (
+    BENCH_SETTLING_BAND,
+    BENCH_STEADY_S,
+    DEAD_ZONE_MM,
+    RECOVERY_FLOOR_MM,
+    RECOVERY_FLOOR_RPM,
+    RECOVERY_FRACTION,
+    STEADY_FRACTION,
+)
 
 
 @dataclass(frozen=True)
@@ -179,6 +187,7 @@ def simulation_tables(paper: dict, metrics: dict) -> dict:
                 "paper_recovery_s": recovery.get(label),
                 "ours_recovery_s": m.get("load_recovery_time_s"),
                 "ours_load_dip_rpm": m.get("load_dip_rpm"),
+                "ours_load_steady_error_rpm": m.get("load_steady_error_mean_rpm"),
                 "ours_max_error_rpm": m.get("max_error_rpm"),
             }
             for label, m in metrics["speed-sine"].items()
@@ -276,6 +285,13 @@ def definitions() -> list[str]:
         "Simulation step metrics: 2 % settling band, on the interval before the load step; "
         f"steady error over the last {100 * STEADY_FRACTION:g} % of that interval; dead-zone "
         f"time until the rod has moved {DEAD_ZONE_MM * 1e3:g} um.",
+        "Load step: the dip is the largest error after it; the recovery time runs until the "
+        f"error stays within {100 * RECOVERY_FRACTION:g} % of the dip, or within "
+        f"{RECOVERY_FLOOR_RPM:g} rpm (speed) or {RECOVERY_FLOOR_MM * 1e3:g} um (position) if "
+        "that is wider, to the end of the run (speed sine: to the reference's next reversal, "
+        "where friction disturbs the loop by itself); none (nan, '-' in a table) if the error is "
+        "still outside then. The steady error under load is the mean and RMS error over the last "
+        f"{100 * STEADY_FRACTION:g} % of that interval.",
         "Reductions are (|PID| - |hybrid|) / |PID| of the same metric.",
         "Rudder rate: the rod velocity through the lumped rudder arm (true value; the bench "
         "computed it from its encoder).",
