@@ -310,6 +310,110 @@ def tune(
 
 
 @app.command()
+def study(
+    scenario: Annotated[str, typer.Argument(help="a shipped scenario name or a .toml path")],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="study folder; the same command resumes it")
+    ],
+    vary: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--vary",
+            "-v",
+            help="KEY=SPEC (repeatable): a list 0.05,0.1; linspace(a,b,n); geomspace(a,b,n); "
+            "uniform(a,b); normal(mean,std); loguniform(a,b); integers(a,b); "
+            "a leading * scales the scenario's value",
+        ),
+    ] = None,
+    runs: Annotated[
+        int, typer.Option(min=1, max=100_000, help="Monte Carlo runs of each grid point")
+    ] = 1,
+    seeds: Annotated[
+        int, typer.Option(min=1, max=100_000, help="a grid over the scenario seed: seed..+N-1")
+    ] = 1,
+    seed: Annotated[int, typer.Option(min=0, max=2**32 - 1, help="seed of the draws")] = 0,
+    label: Annotated[
+        list[str] | None,
+        typer.Option("--label", "-l", help="run only this controller set (repeatable)"),
+    ] = None,
+    setting: Annotated[
+        list[str] | None, typer.Option("--set", "-s", help="dotted.key=value, fixed")
+    ] = None,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(help="a Dask scheduler address (default: a LocalCluster on this machine)"),
+    ] = None,
+    workers: Annotated[
+        int | None, typer.Option(min=1, max=1024, help="LocalCluster workers (default: cores)")
+    ] = None,
+    traces: Annotated[bool, typer.Option(help="keep each run's traces (result.parquet)")] = False,
+    trust_fmu: Annotated[
+        bool, typer.Option("--trust-fmu", help="allow solver.mechanism_fmu (runs its code)")
+    ] = False,
+) -> None:
+    """Run a grid or a Monte Carlo over any scenario keys, every controller set on every sample,
+    on Dask; write a run folder per run, metrics.parquet and a summary; resumable."""
+    from .experiments.study import StudySpec, plan_study, run_study
+
+    spec = StudySpec(
+        scenario=scenario,
+        vary=tuple(vary or ()),
+        runs=runs,
+        seeds=seeds,
+        seed=seed,
+        labels=tuple(label or ()),
+        settings=tuple(setting or ()),
+        traces=traces,
+    )
+    start = time.perf_counter()
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} runs"),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=True,
+    )
+    task = bar.add_task(f"study of {scenario}", total=None)
+
+    def progress(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    try:
+        plan_study(spec)  # every sample validated before a cluster starts
+        with bar:
+            result = run_study(spec, out, scheduler, workers, progress, trust_fmu)
+    except EmasimError as err:
+        _fail(err)
+    _print_study(result)
+    console.print(
+        f"{len(result.table)} runs in {out}/ (metrics.parquet, summary/) in "
+        f"{time.perf_counter() - start:.1f} s",
+        highlight=False,
+    )
+
+
+def _print_study(result) -> None:
+    """Median [5 %, 95 %] of each metric that varies, one column per controller set."""
+    from .experiments.study import metric_columns
+
+    summary = result.summary()
+    table = Table(title=f"{result.plan.spec.scenario}: median [5 %, 95 %] over the runs")
+    table.add_column("metric")
+    for name in summary:
+        table.add_column(name, justify="right")
+    for metric in metric_columns(result.table, result.plan):
+        if result.table[metric].nunique(dropna=True) <= 1:
+            continue
+        cells = []
+        for per in summary.values():
+            d = per[metric]
+            cells.append(f"{d['p50']:.4g} [{d['p05']:.3g}, {d['p95']:.3g}]" if d["runs"] else "")
+        table.add_row(metric, *cells)
+    console.print(table)
+
+
+@app.command()
 def reproduce(
     out: Annotated[
         Path | None,

@@ -158,3 +158,41 @@ def plot_clearance_sweep(rows: list[dict]):
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     return fig
+
+
+STUDY_COLUMNS = 4
+
+
+def plot_study(table, metrics: list[str], labels: list[str], along: str | None = None):
+    """A study's metrics, a panel each (those that differ between runs): against the grid key
+    ``along`` when given and numeric (the median over its runs at each value, with the 5-95 %
+    band), else as each controller set's distribution (box: quartiles, whiskers 5-95 %)."""
+    varying = [m for m in metrics if table[m].nunique(dropna=True) > 1] or metrics[:1]
+    x_numeric = along is not None and table[along].dtype.kind in "fiu"
+    rows = -(-len(varying) // STUDY_COLUMNS)
+    columns = min(len(varying), STUDY_COLUMNS)
+    fig = Figure(figsize=(3.6 * columns, 2.8 * rows), layout="constrained")
+    axes = fig.subplots(rows, columns, squeeze=False).ravel()
+    for ax, metric in zip(axes, varying, strict=False):
+        for label in labels:
+            mine = table[table["label"] == label]
+            if x_numeric:
+                grouped = mine.groupby(along)[metric]
+                x = np.asarray(grouped.median().index, dtype=float)
+                ax.plot(x, grouped.median().to_numpy(), "o-", ms=3, label=label)
+                if grouped.size().max() > 1:
+                    low, high = grouped.quantile(0.05), grouped.quantile(0.95)
+                    ax.fill_between(x, low.to_numpy(), high.to_numpy(), alpha=0.2)
+        if x_numeric:
+            ax.set_xlabel(along)
+        else:
+            data = [table[table["label"] == lb][metric].dropna().to_numpy() for lb in labels]
+            ax.boxplot(data, whis=(5, 95), showfliers=False)
+            ax.set_xticks(range(1, len(labels) + 1), labels, fontsize=8)
+        ax.set_title(metric, fontsize=8)
+        ax.grid(True, alpha=0.3)
+    for ax in axes[len(varying) :]:
+        ax.set_visible(False)
+    if x_numeric:
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=4)
+    return fig

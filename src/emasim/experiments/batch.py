@@ -1,47 +1,160 @@
-"""Many independent runs at once, the one facility for sweeps, and a scenario's comparison of
-its controller sets.
+"""Many independent runs at once: the one way emasim runs many simulations (a comparison's
+controller sets, the ablation, the reproduction, studies), on Dask distributed.
 
-Runs are Dask delayed tasks. The default threaded scheduler uses every core of this machine,
-because the compiled loop releases the GIL (``nogil``) while it integrates, and numba's noise
-generator is per thread and seeded at the start of each run, so results do not depend on the
-schedule. Pass ``scheduler`` (any of Dask's: "threads", "processes", "synchronous", or a
-distributed Client's) to run elsewhere.
+:func:`dask_client` opens a client: to a running cluster (``scheduler``, e.g.
+``tcp://host:8786``), or to a ``LocalCluster`` on this machine, of worker processes (studies:
+the Python parts of a run, metrics and file writing, hold the GIL) or of threads in this
+process (a comparison of a few runs: no process to start, and the compiled loop releases the GIL
+while it integrates). :func:`map_runs` sends the jobs, hands each result to ``on_done`` as it
+finishes, and returns them in order. Results do not depend on the schedule: numba's noise
+generator is per thread and seeded at the start of each run.
 """
 
+import contextlib
+import logging
+import os
+import socket
+
+from ..errors import InputError
 from ..sim.cosim import check_fmu_trust
 from ..sim.result import Comparison
 from .runs import meta_of, run_scenario
 
+CONNECT_TIMEOUT_S = 10
 
-def run_all(scenarios, scheduler="threads", trust_fmu: bool = False, labels=None) -> list:
+
+def workers_available() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+@contextlib.contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None, processes: bool = True):
+    """A ``dask.distributed.Client``: to the cluster at ``scheduler``, else to a LocalCluster of
+    ``workers`` (default: one per core) single-threaded worker processes, or with
+    ``processes=False`` one worker of that many threads in this process. A cluster it started
+    is closed on exit."""
+    from dask.distributed import Client, LocalCluster
+
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    if scheduler is not None:
+        _check_reachable(scheduler)
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, ValueError, TypeError) as err:
+            raise InputError(f"--scheduler {scheduler}: cannot connect ({err})") from None
+        with client:
+            yield client
+        return
+    n = workers or workers_available()
+    cluster = LocalCluster(
+        processes=processes,
+        n_workers=n if processes else 1,
+        threads_per_worker=1 if processes else n,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    with cluster, Client(cluster) as client:
+        yield client
+
+
+def _check_reachable(scheduler: str) -> None:
+    """Refuse, in one line, an address that is not ``scheme://host:port`` or a TCP scheduler
+    that does not answer (before a Client exists: a Client that failed to connect still
+    tries to close at exit, and prints a traceback)."""
+    from distributed.comm import parse_address, parse_host_port
+
+    try:
+        scheme, location = parse_address(scheduler, strict=True)
+        host, port = parse_host_port(location) if scheme == "tcp" else (None, None)
+    except (ValueError, TypeError) as err:
+        raise InputError(
+            f"--scheduler {scheduler}: not an address like tcp://host:8786 ({err})"
+        ) from None
+    if scheme == "tcp":
+        try:
+            socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+        except OSError as err:
+            raise InputError(
+                f"--scheduler {scheduler}: nothing answers there ({err.strerror or err})"
+            ) from None
+
+
+def map_runs(function, jobs: list[tuple], client, on_done=None, first_alone: bool = False):
+    """``[function(*job) for job in jobs]``, run on ``client``'s workers; ``on_done(i, value)``
+    is called in this process as each job ``i`` finishes. ``first_alone``: run the first job
+    before the others, so that a cold numba cache is compiled once, not by every worker. The
+    first failure cancels the jobs still waiting and is raised here."""
+    from dask.distributed import as_completed
+
+    values = [None] * len(jobs)
+    index = {}
+
+    def submit(i):
+        future = client.submit(function, *jobs[i], pure=False)
+        index[future.key] = i
+        return future
+
+    def collect(future):
+        i = index[future.key]
+        values[i] = future.result()
+        if on_done is not None:
+            on_done(i, values[i])
+
+    start = 1 if first_alone and jobs else 0
+    if start:
+        collect(submit(0))
+    futures = [submit(i) for i in range(start, len(jobs))]
+    try:
+        for future in as_completed(futures):
+            collect(future)
+    except BaseException:
+        client.cancel(futures)
+        raise
+    return values
+
+
+def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progress=None) -> list:
     """Simulate scenarios (single runs) in parallel; return their Results in order.
 
-    ``labels`` name the runs (one per scenario); ``trust_fmu`` as in ``run_scenario``.
-    """
-    import dask  # here: a single run needs none of it (0.17 s of start-up)
-
+    ``labels`` name the runs (one per scenario); ``trust_fmu`` as in ``run_scenario``;
+    ``client`` a Dask client (default: threads in this process); ``progress`` is told the
+    fraction of runs done after each run."""
     scenarios = list(scenarios)
     labels = list(labels) if labels is not None else [None] * len(scenarios)
-    tasks = [
-        dask.delayed(run_scenario)(scenario, trust_fmu=trust_fmu, label=label)
-        for scenario, label in zip(scenarios, labels, strict=True)
-    ]
-    return list(dask.compute(*tasks, scheduler=scheduler))
+    jobs = [(s, trust_fmu, label) for s, label in zip(scenarios, labels, strict=True)]
+    done = [0]
+
+    def on_done(_, __):
+        done[0] += 1
+        if progress is not None:
+            progress(done[0] / len(jobs))
+
+    if client is not None:
+        return map_runs(_run, jobs, client, on_done)
+    with dask_client(processes=False) as local:
+        return map_runs(_run, jobs, local, on_done)
 
 
-def run_comparison(scenario, progress=None, trust_fmu: bool = False) -> Comparison:
+def _run(scenario, trust_fmu, label):
+    return run_scenario(scenario, trust_fmu=trust_fmu, label=label)
+
+
+def run_comparison(scenario, progress=None, trust_fmu: bool = False, client=None) -> Comparison:
     """Run every controller set of ``scenario.compare`` (or its one set) on the experiment,
-    in parallel (run_all); ``progress`` is told 0 at the start and 1 at the end."""
+    in parallel (:func:`run_all`); ``progress`` is told the fraction of runs done."""
     check_fmu_trust(scenario, trust_fmu)
     variants = scenario.variants()
     if progress is not None:
         progress(0.0)
     runs = run_all(
-        (v for _, v in variants), trust_fmu=trust_fmu, labels=[label for label, _ in variants]
+        (v for _, v in variants),
+        labels=[label for label, _ in variants],
+        trust_fmu=trust_fmu,
+        client=client,
+        progress=progress,
     )
     results = dict(zip((label for label, _ in variants), runs, strict=True))
-    if progress is not None:
-        progress(1.0)
     wall = sum(r.meta["simulation_wall_s"] for r in results.values())
     meta = meta_of(scenario, wall)
     meta["real_time_factor"] = wall / (scenario.duration_s * len(variants))

@@ -119,15 +119,38 @@ def apply_setting(raw: dict, setting: str) -> None:
     except RecursionError:
         raise InputError(f"--set {key}: nested too deeply") from None
     check_raw(value, f"--set {key}")
+    set_key(raw, key, value, "--set")
+
+
+def set_key(raw: dict, key: str, value, what: str) -> None:
+    """Set the dotted ``key`` of a raw scenario table to ``value``; a section given as a preset
+    name (``plant = "sea805"``) is opened up into ``{preset = ...}`` on the way, and a number
+    in the key indexes a list (``load.rudder_Nm.0.value``)."""
+    parts = key.split(".")
     table = raw
     for part in parts[:-1]:
+        if isinstance(table, list):
+            table = _item(table, part, key, what)
+            continue
         child = table.setdefault(part, {})
         if isinstance(child, str):  # a preset name given as a string: open it up as a table
             child = table[part] = {"preset": child}
-        if not isinstance(child, dict):
-            raise InputError(f"--set {key}: '{part}' is a value, not a section")
+        if not isinstance(child, dict | list):
+            raise InputError(f"{what} {key}: '{part}' is a value, not a section")
         table = child
-    table[parts[-1]] = value
+    if isinstance(table, list):
+        index = parts[-1]
+        _item(table, index, key, what)
+        table[int(index)] = value
+    else:
+        table[parts[-1]] = value
+
+
+def _item(items: list, part: str, key: str, what: str):
+    """``items[int(part)]``, refused in one line when ``part`` is no index of the list."""
+    if not part.isdigit() or int(part) >= len(items):
+        raise InputError(f"{what} {key}: '{part}' is not an index of a list of {len(items)}")
+    return items[int(part)]
 
 
 def load_scenario(

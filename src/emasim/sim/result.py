@@ -113,13 +113,15 @@ class Result:
             )
         return pa.Table.from_arrays(arrays, names=list(self.columns))
 
-    def write_files(self, folder: Path, plot: bool = True) -> None:
-        """Write the run's files into an existing folder (see :meth:`save`)."""
-        pq.write_table(self._to_arrow(), folder / "result.parquet")
+    def write_files(self, folder: Path, plot: bool = True, traces: bool = True) -> None:
+        """Write the run's files into an existing folder (see :meth:`save`); without
+        ``traces``, no result.parquet (a study's runs: the metrics and the scenario)."""
+        if traces:
+            pq.write_table(self._to_arrow(), folder / "result.parquet")
         meta = self.meta
         if self.description is not None:
             meta = {**meta, "run": self.description.to_json()}
-        _write_records(folder, self.metrics, meta, self.scenario)
+        write_records(folder, self.metrics, meta, self.scenario)
         if plot:
             from ..analysis.plots import plot_result, save_figure
 
@@ -167,7 +169,7 @@ class Comparison:
             sub = folder / slug(label)
             sub.mkdir()
             result.write_files(sub, plot=False)
-        _write_records(folder, self.metrics, self.meta, self.scenario)
+        write_records(folder, self.metrics, self.meta, self.scenario)
         if plot:
             from ..analysis.plots import plot_comparison, save_figure
 
@@ -209,7 +211,8 @@ def _save(result, folder, plot: bool, force: bool, kind: str) -> Path:
     )
 
 
-def _write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:
+def write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:
+    """metrics.json, meta.json and scenario.toml of a run or comparison folder."""
     (folder / "metrics.json").write_text(json_text(metrics))
     (folder / "meta.json").write_text(json_text(meta))
     (folder / "scenario.toml").write_text(tomli_w.dumps(scenario))

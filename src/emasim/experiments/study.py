@@ -1,0 +1,507 @@
+"""Studies: grids and Monte Carlo over any scenario key, run on Dask distributed.
+
+A study takes a scenario, the keys it varies (:mod:`.variation`), ``runs`` Monte Carlo runs
+of each grid point and the controller sets of the scenario's comparison (all, or the chosen
+``labels``). Every sample runs with every controller set, so the sets are compared on the same
+plants (paired). Its folder holds
+
+* ``study.json``: what the study is (scenario, variations, runs, seed, labels, settings, the
+  emasim version and a hash of every run's fully resolved scenario);
+* ``runs/<run_id>/``: one folder per finished run, written by the worker the moment the run
+  ends, atomically: ``scenario.toml`` (run it again with ``emasim run``), ``metrics.json``,
+  ``meta.json`` (with ``study``: run id, label, sample, values) and, with ``traces``,
+  ``result.parquet``;
+* ``metrics.parquet``: one row per finished run: ``run_id``, ``label``, ``sample``, ``status``
+  ('ok' or 'diverged: ...'), each variation's value (the factor for a '*' variation), then every
+  metric; rewritten (atomically) after each run;
+* ``summary/``: ``summary.md`` and ``summary.json`` (each metric's distribution for each
+  controller set) and ``distributions.png``, written when the study is complete.
+
+The run folders are the record: a killed client or worker loses no finished run, and the same
+command resumes, running only what has no folder yet (a killed worker's runs are re-run by
+Dask on another worker). A folder that holds another study is refused: a study is never
+replaced. One client at a time holds a study (a lock on its study.json). The workers write the run
+folders themselves: on a cluster of several machines the folder must be on a file system they
+share.
+"""
+
+import contextlib
+import fcntl
+import hashlib
+import io
+import json
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, SimulationDiverged
+from ..output import (
+    OutputError,
+    check_folder,
+    is_emasim_folder,
+    json_text,
+    slug,
+    write_file,
+    write_folder,
+)
+from ..scenarios.loader import apply_setting, read_scenario_file, set_key, validate_scenario
+from .variation import Variation, parse_variation, samples
+
+STUDY_FILE = "study.json"
+METRICS_FILE = "metrics.parquet"
+RUNS_FOLDER = "runs"
+SUMMARY_FOLDER = "summary"
+ROW_KEYS = ("run_id", "label", "sample", "status")
+TABLE_TAG = b"emasim study metrics"  # in metrics.parquet's schema metadata: the file is ours
+OK = "ok"
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """What a study runs (module docstring): ``vary`` are ``KEY=SPEC`` texts, ``settings``
+    fixed ``KEY=VALUE`` overrides (as ``--set``), ``seeds`` a grid over the scenario's seed
+    (its own seed and the next seeds-1), ``seed`` the seed of the draws, ``labels`` the
+    controller sets to run (empty: every one), ``traces`` whether run folders keep traces."""
+
+    scenario: str
+    vary: tuple[str, ...] = ()
+    runs: int = 1
+    seeds: int = 1
+    seed: int = 0
+    labels: tuple[str, ...] = ()
+    settings: tuple[str, ...] = ()
+    traces: bool = False
+
+    def record(self) -> dict:
+        return {
+            "scenario": self.scenario,
+            "vary": list(self.vary),
+            "runs": self.runs,
+            "seeds": self.seeds,
+            "seed": self.seed,
+            "labels": list(self.labels),
+            "settings": list(self.settings),
+            "traces": self.traces,
+        }
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a study: its id, controller set, sample and validated scenario."""
+
+    run_id: str
+    label: str
+    sample: int
+    values: dict
+    scenario: object
+
+
+@dataclass
+class Plan:
+    """A study's runs, validated before any is started."""
+
+    spec: StudySpec
+    variations: list[Variation]
+    labels: list[str]
+    jobs: list[Job]
+    digest: str = ""
+
+    def record(self) -> dict:
+        from .. import __version__
+
+        return {
+            "study": self.spec.record(),
+            "labels": self.labels,
+            "samples": len(self.jobs) // max(len(self.labels), 1),
+            "emasim_version": __version__,
+            "scenarios_sha256": self.digest,
+        }
+
+
+def plan_study(spec: StudySpec) -> Plan:
+    """Every run of ``spec``, its scenario validated; InputError names the first bad one."""
+    from .. import __version__
+
+    if not 1 <= spec.runs <= 100_000 or not 1 <= spec.seeds <= 100_000:
+        raise InputError("--runs and --seeds: whole numbers from 1 to 100000")
+    raw, source = read_scenario_file(spec.scenario)
+    for item in spec.settings:
+        apply_setting(raw, item)
+    nominal = validate_scenario(raw, source)
+    variants = _variant_tables(raw, nominal)
+    labels = list(spec.labels) or list(variants)
+    unknown = [label for label in labels if label not in variants]
+    if unknown:
+        raise InputError(
+            f"--label: {unknown[0]!r} is no controller set of {nominal.name}; "
+            f"choose from: {', '.join(variants)}"
+        )
+    variations = [parse_variation(text) for text in spec.vary]
+    if spec.seeds > 1:
+        if any("seed" in v.keys for v in variations):
+            raise InputError("--seeds: the seed is varied by --vary already; give one of them")
+        seeds = tuple(range(nominal.seed, nominal.seed + spec.seeds))
+        variations.append(Variation("seed", ("seed",), seeds, None, False, f"--seeds {spec.seeds}"))
+    points = samples(variations, spec.runs, spec.seed)
+    jobs = []
+    for label in labels:
+        base = validate_scenario(variants[label], source)
+        for point in points:
+            scenario = _sample_scenario(variants[label], base, variations, point.values, source)
+            run_id = f"{slug(label)}-{point.index:05d}"
+            jobs.append(Job(run_id, label, point.index, point.values, scenario))
+    digest = hashlib.sha256()
+    for job in jobs:
+        text = json.dumps(job.scenario.model_dump(mode="json"), sort_keys=True)
+        digest.update(text.encode())
+    digest.update(__version__.encode())
+    return Plan(spec, variations, labels, jobs, digest.hexdigest())
+
+
+def _variant_tables(raw: dict, nominal) -> dict[str, dict]:
+    """label -> the raw table of each controller set's single-run scenario."""
+    if not nominal.compare:
+        return {nominal.controllers_label(): raw}
+    single = {k: v for k, v in raw.items() if k != "compare"}
+    return {
+        entry["label"]: {**single, "controllers": entry.get("controllers", {})}
+        for entry in raw["compare"]
+    }
+
+
+def _sample_scenario(raw: dict, base, variations: list[Variation], values: dict, source: str):
+    """The validated scenario of one sample: each variation's value set on a copy of ``raw``
+    (a '*' variation multiplies ``base``'s resolved value)."""
+    table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
+    resolved = base.model_dump(mode="json") if any(v.relative for v in variations) else None
+    for variation in variations:
+        value = values[variation.name]
+        for key in variation.keys:
+            applied = value * _resolved(resolved, key) if variation.relative else value
+            set_key(table, key, applied, "--vary")
+    try:
+        return validate_scenario(table, source)
+    except InputError as err:
+        shown = ", ".join(f"{k}={v!r}" for k, v in values.items())
+        raise InputError(f"--vary: the sample {shown} is not a valid scenario: {err}") from None
+
+
+def _resolved(resolved: dict, key: str) -> float:
+    """The number at a dotted key of a resolved scenario (what a '*' variation scales)."""
+    value = resolved
+    for part in key.split("."):
+        if isinstance(value, list) and part.isdigit() and int(part) < len(value):
+            value = value[int(part)]
+        elif isinstance(value, dict) and part in value:
+            value = value[part]
+        else:
+            raise InputError(f"--vary {key}: the scenario has no such key to scale with '*'")
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        raise InputError(f"--vary {key}: '*' scales a number; the scenario's value is {value!r}")
+    return float(value)
+
+
+def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False) -> dict:
+    """A worker's task: simulate one run, write its run folder, return its metrics row."""
+    from .runs import meta_of, run_scenario
+
+    record = {"run_id": job.run_id, "label": job.label, "sample": job.sample}
+    record["values"] = job.values
+    scenario = job.scenario
+    try:
+        result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
+        status, metrics = OK, result.metrics
+    except SimulationDiverged as err:
+        status, metrics, result = f"diverged: {err}", {}, None
+    if result is not None:
+        result.meta["study"] = record
+        write_folder(folder, lambda tmp: result.write_files(tmp, plot=False, traces=traces))
+    else:
+        meta = meta_of(scenario, float("nan")) | {"label": job.label, "study": record}
+        meta["status"] = status
+        resolved = scenario.model_dump(mode="json", exclude_none=True)
+        write_folder(folder, lambda tmp: _write_failed(tmp, meta, resolved))
+    return _row(record, status, metrics)
+
+
+def _write_failed(folder: Path, meta: dict, scenario: dict) -> None:
+    from ..sim.result import write_records
+
+    write_records(folder, {}, meta, scenario)
+
+
+def _row(record: dict, status: str, metrics: dict) -> dict:
+    row = {k: record[k] for k in ("run_id", "label", "sample")}
+    row["status"] = status
+    return row | dict(record["values"]) | dict(metrics)
+
+
+def finished_rows(folder: Path) -> dict[str, dict]:
+    """run_id -> row of every finished run folder of a study (its record, not the table)."""
+    rows = {}
+    runs = folder / RUNS_FOLDER
+    if not runs.is_dir():
+        return rows
+    for run in runs.iterdir():
+        if not is_emasim_folder(run):
+            continue  # a killed run's temporary, or not ours
+        try:
+            meta = json.loads((run / "meta.json").read_text())
+            metrics = json.loads((run / "metrics.json").read_text())
+            record = meta["study"]
+        except (OSError, ValueError, KeyError):
+            continue
+        rows[record["run_id"]] = _row(record, meta.get("status", OK), metrics)
+    return rows
+
+
+@dataclass
+class Study:
+    """A study's folder and its table (a pandas DataFrame, one row per run)."""
+
+    folder: Path
+    table: object
+    plan: Plan = field(repr=False)
+
+    @property
+    def complete(self) -> bool:
+        return len(self.table) == len(self.plan.jobs)
+
+    def summary(self) -> dict:
+        """label -> metric -> distribution (:func:`distribution`) over the finished runs."""
+        return summarize(self.table, self.plan)
+
+
+def run_study(
+    spec: StudySpec,
+    out: str | Path,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress=None,
+    trust_fmu: bool = False,
+    client=None,
+) -> Study:
+    """Run (or resume) the study ``spec`` in folder ``out`` on Dask and return it.
+
+    ``client``: a ``dask.distributed.Client`` to run on; else one to the scheduler at
+    ``scheduler``, else to a LocalCluster of ``workers`` processes (default one per core).
+    ``progress(done, total)`` is called as runs finish.
+    """
+    from .batch import dask_client, map_runs
+
+    plan = plan_study(spec)
+    folder = Path(out)
+    open_folder(folder, plan)
+    with _holding(folder):
+        rows = finished_rows(folder)
+        known = {job.run_id for job in plan.jobs}
+        rows = {run_id: row for run_id, row in rows.items() if run_id in known}
+        pending = [job for job in plan.jobs if job.run_id not in rows]
+        total = len(plan.jobs)
+        if progress is not None:
+            progress(len(rows), total)
+        write_table(folder, rows, plan)
+
+        def on_done(_, row):
+            rows[row["run_id"]] = row
+            write_table(folder, rows, plan)
+            if progress is not None:
+                progress(len(rows), total)
+
+        if pending:
+            jobs = [
+                (job, (folder / RUNS_FOLDER / job.run_id).absolute(), spec.traces, trust_fmu)
+                for job in pending
+            ]
+            with (
+                contextlib.nullcontext(client)
+                if client
+                else dask_client(scheduler, workers) as used
+            ):
+                map_runs(run_and_write, jobs, used, on_done, first_alone=True)
+        table = as_frame(rows, plan)
+        study = Study(folder, table, plan)
+        if study.complete:
+            write_summary(folder, study)
+    return study
+
+
+def open_folder(folder: Path, plan: Plan) -> None:
+    """Make the study folder, or check that the one there holds this very study."""
+    record = plan.record()
+    if is_emasim_folder(folder) and (folder / STUDY_FILE).is_file():
+        try:
+            there = json.loads((folder / STUDY_FILE).read_text())
+        except (OSError, ValueError):
+            there = None
+        if there == json.loads(json_text(record)):
+            return
+        raise OutputError(
+            f"--out {folder}: holds another study (its scenario, --vary, --runs, --seeds, "
+            "--label, --set or the emasim version differ); a study is never replaced: "
+            "the same command resumes it, choose another --out for this one"
+        )
+    check_folder(folder, force=False)
+
+    def write(tmp: Path) -> None:
+        (tmp / STUDY_FILE).write_text(json_text(record))
+        (tmp / RUNS_FOLDER).mkdir()
+
+    write_folder(folder, write, kind="study")
+
+
+@contextlib.contextmanager
+def _holding(folder: Path):
+    """Hold the study's lock (flock on its study.json: writing into the folder locks the folder
+    itself) or refuse: one client at a time."""
+    fd = os.open(folder / STUDY_FILE, os.O_RDONLY)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise OutputError(
+                f"--out {folder}: another emasim process is running this study"
+            ) from None
+        yield
+    finally:
+        os.close(fd)
+
+
+def _columns(rows: list[dict], plan: Plan) -> list[str]:
+    names = [*ROW_KEYS, *(v.name for v in plan.variations)]
+    metrics = dict.fromkeys(k for row in rows for k in row if k not in names)
+    return names + list(metrics)
+
+
+def as_frame(rows: dict[str, dict], plan: Plan):
+    """The rows as a DataFrame in the plan's order, one column per key (missing: NaN)."""
+    import pandas as pd
+
+    order = {job.run_id: i for i, job in enumerate(plan.jobs)}
+    ordered = sorted(rows.values(), key=lambda row: order[row["run_id"]])
+    return pd.DataFrame(ordered, columns=_columns(ordered, plan))
+
+
+def write_table(folder: Path, rows: dict[str, dict], plan: Plan) -> None:
+    """Write metrics.parquet atomically (pyarrow; the schema metadata tags it as ours)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    frame = as_frame(rows, plan)
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), b"emasim": TABLE_TAG})
+    buffer = io.BytesIO()
+    pq.write_table(table, buffer)
+    write_file(
+        folder / METRICS_FILE,
+        buffer.getvalue(),
+        force=True,
+        is_ours=_is_study_table,
+        what="--out",
+    )
+
+
+def _is_study_table(path: Path) -> bool:
+    import pyarrow.parquet as pq
+
+    try:
+        return (pq.read_schema(path).metadata or {}).get(b"emasim") == TABLE_TAG
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def read_table(folder: str | Path):
+    """A study's metrics.parquet as a pandas DataFrame."""
+    import pandas as pd
+
+    return pd.read_parquet(Path(folder) / METRICS_FILE)
+
+
+QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
+
+
+def distribution(values) -> dict:
+    """runs (finite values), mean, std, min, the 5/25/50/75/95 % quantiles and max."""
+    x = np.asarray(values, dtype=float)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return {"runs": 0}
+    q = np.quantile(x, QUANTILES)
+    return {
+        "runs": int(x.size),
+        "mean": float(x.mean()),
+        "std": float(x.std(ddof=1)) if x.size > 1 else 0.0,
+        "min": float(x.min()),
+        **{f"p{round(100 * p):02d}": float(v) for p, v in zip(QUANTILES, q, strict=True)},
+        "max": float(x.max()),
+    }
+
+
+def metric_columns(table, plan: Plan) -> list[str]:
+    """The metric columns of a study table (numeric, not a key nor a variation)."""
+    fixed = {*ROW_KEYS, *(v.name for v in plan.variations)}
+    return [c for c in table.columns if c not in fixed and table[c].dtype.kind in "fiu"]
+
+
+def summarize(table, plan: Plan) -> dict:
+    """label -> metric -> distribution over that controller set's runs."""
+    return {
+        label: {metric: distribution(group[metric]) for metric in metric_columns(table, plan)}
+        for label, group in ((lb, table[table["label"] == lb]) for lb in plan.labels)
+    }
+
+
+def summary_markdown(summary: dict, plan: Plan, diverged: dict[str, int]) -> str:
+    """The summary as Markdown: one table per metric, a row per controller set."""
+    from ..analysis.paper_report import markdown_table
+
+    spec = plan.spec
+    lines = [
+        f"# Study of {spec.scenario}",
+        "",
+        f"{len(plan.jobs) // len(plan.labels)} samples x {len(plan.labels)} controller sets; "
+        f"varied: {', '.join(spec.vary) or 'nothing'}"
+        + (f"; --seeds {spec.seeds}" if spec.seeds > 1 else "")
+        + f"; draws seeded {spec.seed}.",
+        "",
+    ]
+    for label, count in diverged.items():
+        if count:
+            lines += [f"**{label}: {count} runs diverged** (status in metrics.parquet).", ""]
+    header = ["controller set", "runs", "median", "5 %", "95 %", "mean", "std"]
+    metrics = list(dict.fromkeys(m for per in summary.values() for m in per))
+    for metric in metrics:
+        rows = []
+        for label, per in summary.items():
+            d = per.get(metric, {"runs": 0})
+            cells = [d.get(k) for k in ("p50", "p05", "p95", "mean", "std")]
+            rows.append([label, d["runs"], *cells])
+        lines += [f"## {metric}", "", markdown_table(header, rows), ""]
+    return "\n".join(lines)
+
+
+def write_summary(folder: Path, study: Study) -> Path:
+    """Write ``summary/`` (replacing the one emasim wrote before): Markdown, JSON, figure."""
+    from ..analysis.plots import plot_study, save_figure
+
+    summary = study.summary()
+    table = study.table
+    diverged = {
+        label: int((table[table["label"] == label]["status"] != OK).sum())
+        for label in study.plan.labels
+    }
+
+    def write(tmp: Path) -> None:
+        (tmp / "summary.json").write_text(json_text({"diverged": diverged, "metrics": summary}))
+        (tmp / "summary.md").write_text(summary_markdown(summary, study.plan, diverged))
+        metrics = metric_columns(table, study.plan)
+        grids = [v.name for v in study.plan.variations if v.grid is not None]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # all-NaN columns of diverged runs
+            figure = plot_study(table, metrics, study.plan.labels, grids[0] if grids else None)
+        save_figure(figure, tmp / "distributions.png")
+
+    return write_folder(folder / SUMMARY_FOLDER, write, force=True, kind="summary")
