@@ -16,12 +16,11 @@ Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasi
 the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
 after each, with the bytes of the kept trace (``Result.data``) and peak / trace; 1000 s runs in
 a process of its own (MEMORY_S), once with every column and once recording only the columns
-the metrics and plots read (``solver.record_signals``). Batch: BATCH_RUNS independent runs of
-speed-step with the PI speed loop (seed and backlash width differ per run), BATCH_S each,
-through ``run_all`` on Dask's threads, with one worker and with two, interleaved, median of
-three each; speed-up = 1 worker / 2 workers. Beside it, the same runs' compiled loop alone
-(EngineRun.advance, the GIL released) on one and on two Python threads: the scaling this
-machine's two cores allow.
+the metrics and plots read (``solver.record_signals``). Batch: the study facility's
+throughput on one and on two worker processes (``bench_study.study_scaling``); beside it, the
+same runs' compiled loop alone (EngineRun.advance, the GIL released) on one and on two Python
+threads: the scaling this machine's two cores allow. Monte Carlo: the wall time of the 200-run
+bench-step robustness study of each controller set (``bench_study.monte_carlo_seconds``).
 FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``.
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
@@ -30,8 +29,8 @@ count and the Python, numpy and numba versions) and rewrites the README's speed 
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
 and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
-QUICK_BATCH_RUNS runs of QUICK_S; no ``list``, single or cold runs, reproduce or FMU. Its
-results are marked ``"quick": true`` and the README's table says so.
+bench_study.QUICK_RUNS runs of its QUICK_S; no ``list``, single or cold runs, reproduce, Monte
+Carlo or FMU. Its results are marked ``"quick": true`` and the README's table says so.
 """
 
 import argparse
@@ -47,13 +46,13 @@ import threading
 import time
 from pathlib import Path
 
-import dask
+import bench_study
 import numba
 import numpy as np
 from readme_figures import RESULTS, write_readme
 
 from emasim.control.registry import CONTROLLERS
-from emasim.experiments.batch import run_all
+from emasim.experiments.study import plan_study
 from emasim.scenarios.loader import builtin_scenarios, load_scenario
 from emasim.sim.engine import EngineRun, simulate
 from emasim.sim.reference import simulate_reference
@@ -63,8 +62,6 @@ QUICK_REFERENCE_S = 0.005
 MEMORY_S = (100.0, 1000.0)
 QUICK_MEMORY_S = 1.0
 BASELINE_S = 1e-3
-BATCH_RUNS, BATCH_S = 8, 1.0
-QUICK_BATCH_RUNS = 2
 
 # Fresh processes timed for start-up: key -> (arguments after ``python -m emasim``, exit code).
 # ``{out}`` is a new folder for each process.
@@ -223,29 +220,6 @@ def memory_figures(durations_s) -> dict:
     return {"baseline": baseline, "runs": runs}
 
 
-def batch_scenarios(runs: int, duration_s: float) -> list:
-    """``runs`` speed-step scenarios with the PI speed loop; seed and backlash differ per run."""
-    return [
-        load_scenario(
-            "speed-step",
-            controllers=["speed=pi"],
-            settings=[
-                f"duration_s={duration_s}",
-                f"seed={k}",
-                f"plant.backlash.width_mm={0.1 + 0.01 * k:.2f}",
-            ],
-        )
-        for k in range(runs)
-    ]
-
-
-def batch_seconds(scenarios: list, workers: int) -> float:
-    with dask.config.set(num_workers=workers):
-        start = time.perf_counter()
-        run_all(scenarios, scheduler="threads")
-        return time.perf_counter() - start
-
-
 def core_seconds(setups: list, threads: int) -> float:
     """Wall time of the compiled loop alone (EngineRun.advance: no set-up, no metrics, the GIL
     released) on each setup, spread over ``threads`` Python threads."""
@@ -263,27 +237,20 @@ def core_seconds(setups: list, threads: int) -> float:
     return time.perf_counter() - start
 
 
-def batch_scaling(runs: int, duration_s: float, repeats: int = 3) -> dict:
-    """Median wall time of ``run_all`` on 1 and on 2 worker threads, interleaved; and the same
-    for the compiled loop alone on 1 and 2 threads, the ceiling the machine allows."""
-    scenarios = batch_scenarios(runs, duration_s)
-    setups = [scenario.setup() for scenario in scenarios]
-    batch_seconds(scenarios[:1], 1)  # load compiled code
-    times = {1: [], 2: []}
+def batch_scaling(runs: int, duration_s: float, repeats: int) -> dict:
+    """The study facility on 1 and 2 worker processes (bench_study.study_scaling); and the
+    same runs' compiled loop alone on 1 and 2 threads, interleaved, the machine's ceiling."""
+    figures = bench_study.study_scaling(runs, duration_s, repeats)
+    setups = [
+        job.scenario.setup() for job in plan_study(bench_study.scaling_spec(runs, duration_s)).jobs
+    ]
+    core_seconds(setups[:1], 1)  # load compiled code
     core = {1: [], 2: []}
     for _ in range(repeats):
-        for workers in times:
-            times[workers].append(batch_seconds(scenarios, workers))
-            core[workers].append(core_seconds(setups, workers))
-    one, two = statistics.median(times[1]), statistics.median(times[2])
-    return {
-        "runs": runs,
-        "duration_s": duration_s,
-        "one_worker_s": one,
-        "two_workers_s": two,
-        "speedup": one / two,
-        "core_speedup": statistics.median(core[1]) / statistics.median(core[2]),
-    }
+        for threads in core:
+            core[threads].append(core_seconds(setups, threads))
+    figures["core_speedup"] = statistics.median(core[1]) / statistics.median(core[2])
+    return figures
 
 
 def machine(quick: bool) -> dict:
@@ -306,7 +273,7 @@ def quick_results() -> dict:
     results["reference"] = reference_speedup(QUICK_REFERENCE_S)
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
-    results["batch"] = batch_scaling(QUICK_BATCH_RUNS, QUICK_S)
+    results["batch"] = batch_scaling(bench_study.QUICK_RUNS, bench_study.QUICK_S, 1)
     return results
 
 
@@ -328,7 +295,10 @@ def full_results() -> dict:
     results["reference"] = reference_speedup()
     results["reproduce_s"] = reproduce_seconds()
     results["peak_memory"] = memory_figures(MEMORY_S)
-    results["batch"] = batch_scaling(BATCH_RUNS, BATCH_S)
+    results["batch"] = batch_scaling(
+        bench_study.SCALING_RUNS, bench_study.SCALING_S, bench_study.REPEATS
+    )
+    results["monte_carlo"] = bench_study.monte_carlo_seconds(bench_study.MC_RUNS)
     results["fmu"] = bench_fmu.fmu_figures(5, 2000)
     return results
 
@@ -382,11 +352,9 @@ def report(results: dict) -> None:
             f"{run['peak_rss_bytes'] / 1e6:.0f} MB, kept trace {run['trace_bytes'] / 1e6:.1f} MB "
             f"(ratio {run['ratio']:.2f})"
         )
-    batch = results["batch"]
+    bench_study.report(results["batch"], results.get("monte_carlo"))
     print(
-        f"batch of {batch['runs']} x {batch['duration_s']:g} s: 1 worker "
-        f"{batch['one_worker_s']:.2f} s, 2 workers {batch['two_workers_s']:.2f} s, "
-        f"speed-up {batch['speedup']:.2f} (compiled loop alone: {batch['core_speedup']:.2f})"
+        f"compiled loop alone, 1 against 2 threads: speed-up {results['batch']['core_speedup']:.2f}"
     )
     if "fmu" in results:
         fmu = results["fmu"]

@@ -129,23 +129,33 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
     if batch is not None:
         rows.append(
             (
-                f"{batch['runs']} independent runs of `speed-step -c speed=pi` "
-                f"({given(batch['duration_s'])} each, seeds and backlash differ) through "
-                "`run_all`, Dask threads, 1 worker against 2",
-                "median of 3 each, interleaved, in one process",
-                f"{seconds(batch['one_worker_s'])} against {seconds(batch['two_workers_s'])}: "
+                f"{batch['runs']} Monte Carlo runs of `{batch['scenario']}` (PID; seed and "
+                f"backlash drawn, {given(batch['duration_s'])} each) through `emasim study`'s "
+                "facility, 1 worker process against 2",
+                "median of 3 each, interleaved, clusters started beforehand",
+                f"{sig(batch['one_worker_sim_s_per_s'], 3)} against "
+                f"{sig(batch['two_workers_sim_s_per_s'], 3)} simulated s per s: "
                 f"speed-up {batch['speedup']:.2f}",
             )
         )
-        if "core_speedup" in batch:
-            rows.append(
-                (
-                    "the same runs' compiled loop alone (no set-up, no metrics, GIL released), "
-                    "1 thread against 2: the machine's ceiling",
-                    "median of 3 each, interleaved, in one process",
-                    f"speed-up {batch['core_speedup']:.2f}",
-                )
+        rows.append(
+            (
+                "the same runs' compiled loop alone (no set-up, no metrics, GIL released), "
+                "1 thread against 2: the machine's ceiling",
+                "median of 3 each, interleaved, in one process",
+                f"speed-up {batch['core_speedup']:.2f}",
             )
+        )
+    mc = results.get("monte_carlo")
+    if mc is not None:
+        rows.append(
+            (
+                f"the {mc['runs']}-run `{mc['scenario']}` robustness Monte Carlo "
+                "(`reproduce --robustness`), each controller set alone",
+                f"one `run_study` on {mc['workers']} worker processes, cluster start included",
+                f"PID {seconds(mc['PID_s'])}, hybrid {seconds(mc['hybrid_s'])}",
+            )
+        )
     return rows
 
 

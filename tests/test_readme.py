@@ -4,6 +4,7 @@ import shlex
 import tomllib
 from pathlib import Path
 
+from typer.main import get_command
 from typer.testing import CliRunner
 
 from emasim.cli import app
@@ -60,6 +61,32 @@ def test_the_python_examples_run(tmp_path, monkeypatch):
         exec(code, namespace)  # noqa: S102 - the README's own examples
     assert (tmp_path / "runs" / "wide-gap" / "result.parquet").is_file()
     assert namespace["setup"].speed.function is namespace["my_speed_law"]
+    assert list(namespace["study"].table["plant.backlash.width_mm"]) == [0.05, 0.2]
+
+
+def test_the_study_examples_are_valid_studies():
+    """Each ``emasim study`` command of the README's bash blocks plans (every sample valid)."""
+    from emasim.experiments.study import StudySpec, plan_study
+
+    lines = "".join(blocks("bash")).replace("\\\n", " ").splitlines()
+    studies = []
+    for line in lines:
+        words = shlex.split(line, comments=True)
+        if len(words) > 1 and words[0].endswith("emasim") and words[1] == "study":
+            studies.append(words[2:])
+    assert len(studies) >= 3
+    command = get_command(app).commands["study"]
+    for words in studies:
+        given = command.make_context("study", words).params  # parsed as the command line does
+        spec = StudySpec(
+            given["scenario"],
+            vary=tuple(given["vary"] or ()),
+            runs=given["runs"],
+            seeds=given["seeds"],
+            labels=tuple(given["label"] or ()),
+            settings=tuple(given["setting"] or ()),
+        )
+        assert plan_study(spec).jobs
 
 
 def test_the_error_examples_print_what_the_readme_says(tmp_path, monkeypatch):

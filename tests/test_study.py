@@ -10,9 +10,9 @@ import sys
 
 import numpy as np
 import pytest
-from dask.distributed import Client, LocalCluster
 
 from emasim.errors import InputError
+from emasim.experiments.batch import dask_client
 from emasim.experiments.runs import run_scenario
 from emasim.experiments.study import (
     METRICS_FILE,
@@ -32,12 +32,7 @@ SHORT = ("duration_s=0.04",)
 @pytest.fixture(scope="module")
 def client():
     """Two worker threads in this process: no processes to start for each study."""
-    with (
-        LocalCluster(
-            processes=False, n_workers=1, threads_per_worker=2, dashboard_address=None
-        ) as cluster,
-        Client(cluster) as c,
-    ):
+    with dask_client(workers=2, processes=False) as c:
         yield c
 
 
@@ -158,6 +153,12 @@ def test_a_star_scales_every_key_by_the_same_factor_of_its_own_value():
         assert friction.static_Nm == pytest.approx(factor * nominal.static_Nm)
 
 
+def test_a_number_for_a_list_sets_every_element():
+    spec = StudySpec("bench-step", vary=("plant.linkage.hinge_clearance_mm=0.02",))
+    (job, _) = plan_study(spec).jobs
+    assert list(job.scenario.plant.linkage.hinge_clearance_mm) == [0.02] * 4
+
+
 def test_controller_keys_vary_each_controller_set():
     spec = StudySpec(
         "bench-step", vary=("controllers.position.bandwidth_Hz=*0.5,1",), labels=("PID",)
@@ -176,7 +177,7 @@ def test_controller_keys_vary_each_controller_set():
             StudySpec("speed-step", vary=("plant.backlash.width_mm=-1,0.1",)),
             "the sample plant.backlash.width_mm=-1 is not a valid scenario",
         ),
-        (StudySpec("speed-step", vary=("plant.nothing=*2",)), "no such key to scale"),
+        (StudySpec("speed-step", vary=("plant.nothing=*2",)), "no number there to scale"),
         (
             StudySpec("speed-step", vary=("seed=1,2",), seeds=2),
             "the seed is varied by --vary already",

@@ -7,17 +7,11 @@ import optuna
 import pytest
 from typer.testing import CliRunner
 
+from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
 from emasim.cli import app
 from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
 from emasim.sim.engine import simulate
-from emasim.tuning import (
-    CHATTER_WEIGHT,
-    search_space,
-    study_key,
-    tune_scenario,
-    tune_variant,
-    tuning_cost,
-)
+from emasim.tuning import search_space, study_key, tune_scenario, tune_variant
 
 SHORT = ["duration_s=0.05", "load.motor_torque_Nm=[]"]
 

@@ -353,7 +353,7 @@ def study(
 ) -> None:
     """Run a grid or a Monte Carlo over any scenario keys, every controller set on every sample,
     on Dask; write a run folder per run, metrics.parquet and a summary; resumable."""
-    from .experiments.study import StudySpec, plan_study, run_study
+    from .experiments.study import StudySpec, run_study
 
     spec = StudySpec(
         scenario=scenario,
@@ -380,8 +380,7 @@ def study(
         bar.update(task, completed=done, total=total)
 
     try:
-        plan_study(spec)  # every sample validated before a cluster starts
-        with bar:
+        with bar:  # every sample is validated before a cluster starts
             result = run_study(spec, out, scheduler, workers, progress, trust_fmu)
     except EmasimError as err:
         _fail(err)
@@ -432,8 +431,21 @@ def reproduce(
         bool,
         typer.Option(help="re-run the bench experiments as the bench's elements are added"),
     ] = True,
+    robustness: Annotated[
+        bool,
+        typer.Option(
+            "--robustness",
+            help="run the Monte Carlo of the headline verdicts over the plant uncertainty "
+            "(minutes; resumable, in runs/robustness/)",
+        ),
+    ] = False,
+    runs: Annotated[
+        int, typer.Option(min=10, max=100_000, help="--robustness runs per controller set")
+    ] = 200,
 ) -> None:
-    """Run every paper experiment and write report.md, report.html and tables.json."""
+    """Run every paper experiment and write report.md, report.html and tables.json; the
+    robustness of the headline verdicts is that of the last --robustness study of these
+    experiments and version, when one exists."""
     from .analysis.paper_report import EXPERIMENTS
     from .experiments.reproduction import reproduce as run_all
     from .output import check_folder
@@ -451,7 +463,14 @@ def reproduce(
     try:
         if out is not None:
             check_folder(out, force)
-        folder = run_all(out, only=only, progress=progress, force=force, with_ablation=ablation)
+        folder = run_all(
+            out,
+            only=only,
+            progress=progress,
+            force=force,
+            with_ablation=ablation,
+            robustness_runs=runs if robustness else None,
+        )
     except EmasimError as err:
         _fail(err)
     finally:

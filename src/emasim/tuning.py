@@ -10,7 +10,9 @@ loops of a cascade are tuned together. The cost of a run is
 where IAE is the integral of |reference - output| of the loop the scenario closes (speed,
 rod position or rudder), T the duration, R the largest |reference|, TV(iq*) the total variation
 per second of the current command and I_max the drive's current limit: tracking error, plus a
-price on control chattering that wears the drive. A run that diverges costs DIVERGED_COST.
+price on control chattering that wears the drive (:func:`emasim.analysis.report.tuning_cost`,
+which every run reports as its ``tuning_cost`` metric). A run that diverges costs
+DIVERGED_COST.
 
 Studies live in SQLite by default (any SQLAlchemy URL works). A study is named by the scenario,
 the label and a hash of the fully resolved single-run scenario (:func:`study_key`), so a changed
@@ -26,33 +28,18 @@ import sqlite3
 import warnings
 from pathlib import Path
 
-import numpy as np
 import optuna
 
-from .analysis.metrics import integral_absolute_error, total_variation_rate
+from .analysis.report import tuning_cost
 from .errors import InputError, SimulationDiverged
 from .sim.engine import simulate
 
-CHATTER_WEIGHT = 2e-3
 DIVERGED_COST = 1e3
 LOOPS = ("position", "speed")
 HEARTBEAT_S = 1  # a running trial tells the storage it is alive this often
 HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
 GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
-
-
-def tuning_cost(result, max_current_A: float) -> float:
-    """J of the module docstring for a simulated run."""
-    t = result.t
-    if result.outer_loop == "position":
-        reference, output = result["position_ref_m"], result["actuator_position_m"]
-    else:
-        reference, output = result["speed_ref_rad_s"], result["motor_speed_rad_s"]
-    scale = (t[-1] - t[0]) * max(float(np.max(np.abs(reference))), 1e-12)
-    tracking = integral_absolute_error(t, reference - output) / scale
-    chatter = total_variation_rate(t, result["iq_ref_A"]) / max_current_A
-    return tracking + CHATTER_WEIGHT * chatter
 
 
 def _controllers_with(controllers, values: dict[str, float]):

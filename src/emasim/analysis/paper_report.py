@@ -384,6 +384,56 @@ def _headline_markdown(items: dict) -> str:
     return markdown_table(header, rows)
 
 
+def _interval(low_high, scale: float = 1.0) -> str:
+    low, high = (scale * v for v in low_high)
+    return f"[{low:.0f}, {high:.0f}]" if math.isfinite(low) and math.isfinite(high) else "[-]"
+
+
+def robustness_lines(verdicts: dict) -> list[str]:
+    """Each figure's conclusion with its probability, as report lines."""
+    lines = []
+    for name, v in verdicts.items():
+        if not v.get("runs"):
+            continue
+        what = name.removesuffix("_reduction").replace("_", " ")
+        better = "lower" if v["win_rate"] >= 0.5 else "higher"
+        lines.append(
+            f"{what} ({v['scenario']} {v['metric']}): the hybrid's is lower than PID's on "
+            f"{100 * v['win_rate']:.0f} % of {v['runs']} plants (95 % interval "
+            f"{_interval(v['win_rate_ci95'], 100)} %), so it is {better} with probability "
+            f"{100 * max(v['win_rate'], 1 - v['win_rate']):.0f} %; median improvement "
+            f"{v['median_improvement_pct']:.0f} % {_interval(v['ci95_pct'])} %."
+        )
+    return lines
+
+
+def _robustness_markdown(verdicts: dict, uncertainty: tuple) -> list[str]:
+    header = ["figure", "experiment", "runs", "hybrid wins", "95 % interval", "median gain"]
+    rows = [
+        [
+            name.removesuffix("_reduction").replace("_", " "),
+            v["scenario"],
+            str(v["runs"]),
+            f"{100 * v['win_rate']:.0f} %",
+            f"{_interval(v['win_rate_ci95'], 100)} %",
+            f"{v['median_improvement_pct']:.0f} % {_interval(v['ci95_pct'])}",
+        ]
+        for name, v in verdicts.items()
+        if v.get("runs")
+    ]
+    return [
+        "## Robustness over the bench's plant uncertainty",
+        "A Monte Carlo of each bench experiment, the gains fixed at their nominal tuning, PID "
+        "and the hybrid on the same sampled plants (emasim.experiments.robustness), every "
+        "parameter uniform: " + "; ".join(f"`{spec}`" for spec in uncertainty) + ". "
+        "Hybrid wins: the fraction of plants on which its |metric| is below PID's (a diverged "
+        "run loses), with its exact (Clopper-Pearson) 95 % interval; median gain: of "
+        "100 (|PID| - |hybrid|) / |PID|, with its distribution-free 95 % interval.",
+        markdown_table(header, rows),
+        "\n".join(f"- {line}" for line in robustness_lines(verdicts)),
+    ]
+
+
 def write_report(
     folder: Path,
     tables: dict,
@@ -391,9 +441,11 @@ def write_report(
     figures: dict,
     notes: str,
     stages: tuple = (),
+    uncertainty: tuple = (),
 ) -> None:
     """report.md, report.html and tables.json into ``folder``; ``stages`` names and describes
-    the ablation's stages, when ``tables`` has an ablation."""
+    the ablation's stages, when ``tables`` has an ablation; ``uncertainty`` the --vary specs
+    of the robustness study, when ``tables`` has its verdicts (``robustness``)."""
     import markdown
 
     parts = [
@@ -404,6 +456,14 @@ def write_report(
     ]
     if "headline" in tables:
         parts += ["## The abstract's five figures", _headline_markdown(tables["headline"])]
+    if tables.get("robustness"):
+        parts += _robustness_markdown(tables["robustness"], uncertainty)
+    elif "headline" in tables:
+        parts += [
+            "## Robustness over the bench's plant uncertainty",
+            "No robustness study of these experiments and this emasim version yet: "
+            "`emasim reproduce --robustness` runs one (minutes).",
+        ]
     for exp in EXPERIMENTS:
         if exp.scenario not in scenarios:
             continue

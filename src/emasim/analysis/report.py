@@ -39,7 +39,8 @@ angle, as a step or a sine. Every window and band is stated here, once:
 Every run also reports the time the drive spent at each of its limits (current, voltage,
 speed: the limit_flags the engine records at each recorded row, times the recording period)
 and, on a plant with end stops, the time in contact with the rod's and the rudder's stops and
-the largest stop force; :func:`run_warnings` turns a stop contact into a warning line.
+the largest stop force; :func:`run_warnings` turns a stop contact into a warning line; and
+``tuning_cost``, the cost every controller set was tuned for (:func:`tuning_cost`).
 """
 
 import math
@@ -58,6 +59,7 @@ DEAD_ZONE_MM = 0.01  # the output has "moved" once it is 10 um from where it sta
 BENCH_STEADY_S = 2.0  # bench experiments: steady-state statistics from this time on
 BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
+CHATTER_WEIGHT = 2e-3  # of the tuning cost: the price of current-command chattering
 RECOVERY_FRACTION = 0.1  # load recovery: back within 10 % of the load step's dip ...
 RECOVERY_FLOOR_RPM = 1.0  # ... or within this absolute band, whichever is wider (speed) ...
 RECOVERY_FLOOR_MM = 0.01  # ... (rod position: 10 um, the DEAD_ZONE_MM resolution)
@@ -157,7 +159,24 @@ def run_metrics(result) -> dict:
         out = speed_sine_metrics(result)
     else:
         out = step_metrics(result, quantity)
-    return {**out, **limit_metrics(result)}
+    cost = tuning_cost(result, result.scenario["plant"]["motor"]["max_current_A"])
+    return {**out, **limit_metrics(result), "tuning_cost": cost}
+
+
+def tuning_cost(result, max_current_A: float) -> float:
+    """The cost every controller set is tuned for (emasim.tuning), dimensionless:
+    J = IAE / (T * max|ref|) + CHATTER_WEIGHT * TV(iq*) / I_max, on the loop the reference
+    drives (speed, or rod position), TV(iq*) the total variation per second of the current
+    command (A/s) and I_max the drive's current limit (A)."""
+    t = result.t
+    if result.outer_loop == "position":
+        reference, output = result["position_ref_m"], result["actuator_position_m"]
+    else:
+        reference, output = result["speed_ref_rad_s"], result["motor_speed_rad_s"]
+    scale = (t[-1] - t[0]) * max(float(np.max(np.abs(reference))), 1e-12)
+    tracking = m.integral_absolute_error(t, reference - output) / scale
+    chatter = m.total_variation_rate(t, result["iq_ref_A"]) / max_current_A
+    return tracking + CHATTER_WEIGHT * chatter
 
 
 def _row_period(t: np.ndarray) -> float:

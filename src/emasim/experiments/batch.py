@@ -51,7 +51,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, proces
         processes=processes,
         n_workers=n if processes else 1,
         threads_per_worker=1 if processes else n,
-        dashboard_address=None,
+        dashboard_address=":0",  # a free port: None still binds 8787, and warns if taken
         silence_logs=logging.ERROR,
     )
     with cluster, Client(cluster) as client:

@@ -17,6 +17,7 @@ from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
 from .ablation import STAGES, ablation
 from .batch import run_comparison
+from .robustness import UNCERTAINTY, latest, run_robustness
 
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
 
@@ -44,16 +45,24 @@ def clearance_sweep() -> list[dict]:
     return rows
 
 
+def _counted(progress):
+    """A ``progress(done, total)`` for a progress that takes a fraction (or None)."""
+    return None if progress is None else (lambda done, total: progress(done / total))
+
+
 def reproduce(
     out: str | Path | None = None,
     only: list[str] | None = None,
     progress=None,
     force: bool = False,
     with_ablation: bool = True,
+    robustness_runs: int | None = None,
 ) -> Path:
     """Run the paper's experiments (or ``only`` those) and write the report folder; with
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
-    for the bench experiments among them.
+    for the bench experiments among them. ``robustness_runs``: run (or resume) the Monte Carlo
+    of emasim.experiments.robustness with that many runs per controller set; without it, the
+    report shows the largest complete one of these experiments and version, if any.
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
@@ -79,6 +88,14 @@ def reproduce(
         known = {name: c.metrics for name, c in ablated.items()}
         scenarios = {name: load_scenario(name) for name in ablated}
         tables["ablation"] = ablation_rows(ablation(scenarios, known))
+
+    if "headline" in tables:
+        if robustness_runs is not None:
+            verdicts = run_robustness(robustness_runs, progress=_counted(progress))
+        else:
+            verdicts = latest()
+        if verdicts:
+            tables["robustness"] = verdicts
 
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
@@ -106,6 +123,7 @@ def reproduce(
             figures,
             notes(),
             stages=STAGES,
+            uncertainty=UNCERTAINTY,
         )
 
     if out is None:

@@ -173,15 +173,24 @@ def _variant_tables(raw: dict, nominal) -> dict[str, dict]:
 
 
 def _sample_scenario(raw: dict, base, variations: list[Variation], values: dict, source: str):
-    """The validated scenario of one sample: each variation's value set on a copy of ``raw``
-    (a '*' variation multiplies ``base``'s resolved value)."""
+    """The validated scenario of one sample: each variation's value set on a copy of ``raw``.
+    A '*' variation multiplies ``base``'s resolved value; a number given for a key that holds
+    a list of numbers (the linkage's four hinge clearances) sets every element."""
     table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
-    resolved = base.model_dump(mode="json") if any(v.relative for v in variations) else None
+    resolved = base.model_dump(mode="json")
     for variation in variations:
         value = values[variation.name]
         for key in variation.keys:
-            applied = value * _resolved(resolved, key) if variation.relative else value
-            set_key(table, key, applied, "--vary")
+            nominal = _resolved(resolved, key)
+            if isinstance(nominal, list) and _is_number(value):
+                value_of = [value * x if variation.relative else value for x in nominal]
+            elif variation.relative:
+                if not _is_number(nominal):
+                    raise InputError(f"--vary {key}: the scenario has no number there to scale")
+                value_of = value * nominal
+            else:
+                value_of = value
+            set_key(table, key, value_of, "--vary")
     try:
         return validate_scenario(table, source)
     except InputError as err:
@@ -189,8 +198,13 @@ def _sample_scenario(raw: dict, base, variations: list[Variation], values: dict,
         raise InputError(f"--vary: the sample {shown} is not a valid scenario: {err}") from None
 
 
-def _resolved(resolved: dict, key: str) -> float:
-    """The number at a dotted key of a resolved scenario (what a '*' variation scales)."""
+def _is_number(value) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _resolved(resolved: dict, key: str):
+    """The value at a dotted key of a resolved scenario, None where it has none (a key the
+    scenario leaves out, set by the variation itself)."""
     value = resolved
     for part in key.split("."):
         if isinstance(value, list) and part.isdigit() and int(part) < len(value):
@@ -198,10 +212,10 @@ def _resolved(resolved: dict, key: str) -> float:
         elif isinstance(value, dict) and part in value:
             value = value[part]
         else:
-            raise InputError(f"--vary {key}: the scenario has no such key to scale with '*'")
-    if not isinstance(value, int | float) or isinstance(value, bool):
-        raise InputError(f"--vary {key}: '*' scales a number; the scenario's value is {value!r}")
-    return float(value)
+            return None
+    if isinstance(value, list) and not all(_is_number(x) for x in value):
+        return None
+    return value
 
 
 def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False) -> dict:

@@ -1,0 +1,121 @@
+"""Speed of the study facility (emasim.experiments.study) on Dask distributed.
+
+    python benchmarks/bench_study.py [--quick]
+
+Throughput: SCALING_RUNS Monte Carlo runs of bench-step (PID; the seed and the backlash drawn
+per run), SCALING_S simulated each, through ``run_study`` on a LocalCluster of one worker
+process and on one of two, both started (and their compiled code loaded) before timing;
+repeated REPEATS times, interleaved, each into a fresh folder; the median wall time of each.
+Throughput = simulated seconds of all runs / wall seconds; speed-up = 2 workers / 1 worker.
+Monte Carlo: the wall time of the robustness study of bench-step (emasim.experiments.robustness:
+MC_RUNS runs, the bench's whole plant uncertainty) for each controller set alone, on a
+LocalCluster of two workers, cluster start included: what ``emasim reproduce --robustness``
+spends on each.
+
+``bench_engine.py`` calls :func:`study_scaling` and :func:`monte_carlo_seconds` for its
+results (and the README's speed table); run alone, this prints them. ``--quick`` (what CI
+runs): QUICK_RUNS runs of QUICK_S, one repeat, and a QUICK_MC_RUNS-run Monte Carlo.
+"""
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from emasim.experiments.batch import dask_client
+from emasim.experiments.robustness import UNCERTAINTY
+from emasim.experiments.study import StudySpec, run_study
+
+SCALING_RUNS, SCALING_S, REPEATS = 16, 2.0, 3
+QUICK_RUNS, QUICK_S = 4, 0.1
+MC_RUNS, QUICK_MC_RUNS = 200, 2
+SCENARIO, LABELS = "bench-step", ("PID", "hybrid")
+
+
+def scaling_spec(runs: int, duration_s: float) -> StudySpec:
+    return StudySpec(
+        SCENARIO,
+        vary=("seed=integers(0, 99999)", "plant.backlash.width_mm=uniform(0.05, 0.2)"),
+        runs=runs,
+        labels=(LABELS[0],),
+        settings=(f"duration_s={duration_s}",),
+    )
+
+
+def _timed_study(spec: StudySpec, folder: Path, **where) -> float:
+    start = time.perf_counter()
+    run_study(spec, folder, **where)
+    return time.perf_counter() - start
+
+
+def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
+    """Median wall time of the same study on 1 and on 2 worker processes (module docstring)."""
+    spec = scaling_spec(runs, duration_s)
+    times = {1: [], 2: []}
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        dask_client(workers=1) as one,
+        dask_client(workers=2) as two,
+    ):
+        clients = {1: one, 2: two}
+        for workers, client in clients.items():  # load the compiled code in every worker
+            warm = StudySpec(
+                SCENARIO, vary=("seed=1,2",), labels=spec.labels, settings=spec.settings
+            )
+            _timed_study(warm, Path(tmp) / f"warm-{workers}", client=client)
+        for k in range(repeats):
+            for workers, client in clients.items():
+                folder = Path(tmp) / f"run-{workers}-{k}"
+                times[workers].append(_timed_study(spec, folder, client=client))
+    one_s, two_s = statistics.median(times[1]), statistics.median(times[2])
+    simulated = runs * duration_s
+    return {
+        "scenario": SCENARIO,
+        "runs": runs,
+        "duration_s": duration_s,
+        "one_worker_s": one_s,
+        "two_workers_s": two_s,
+        "one_worker_sim_s_per_s": simulated / one_s,
+        "two_workers_sim_s_per_s": simulated / two_s,
+        "speedup": one_s / two_s,
+    }
+
+
+def monte_carlo_seconds(runs: int) -> dict:
+    """Wall time of the bench-step robustness Monte Carlo of each controller set alone."""
+    out = {"scenario": SCENARIO, "runs": runs, "workers": 2}
+    with tempfile.TemporaryDirectory() as tmp:
+        for label in LABELS:
+            spec = StudySpec(SCENARIO, vary=UNCERTAINTY, runs=runs, labels=(label,))
+            out[f"{label}_s"] = _timed_study(spec, Path(tmp) / label, workers=2)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a few seconds (module docstring)")
+    args = parser.parse_args()
+    if args.quick:
+        scaling, mc = study_scaling(QUICK_RUNS, QUICK_S, 1), monte_carlo_seconds(QUICK_MC_RUNS)
+    else:
+        scaling, mc = study_scaling(SCALING_RUNS, SCALING_S, REPEATS), monte_carlo_seconds(MC_RUNS)
+    report(scaling, mc)
+
+
+def report(scaling: dict, mc: dict) -> None:
+    print(
+        f"study of {scaling['runs']} x {scaling['duration_s']:g} s of {scaling['scenario']}: "
+        f"1 worker {scaling['one_worker_s']:.2f} s ({scaling['one_worker_sim_s_per_s']:.2f} "
+        f"sim s/s), 2 workers {scaling['two_workers_s']:.2f} s "
+        f"({scaling['two_workers_sim_s_per_s']:.2f} sim s/s), speed-up {scaling['speedup']:.2f}"
+    )
+    for label in LABELS if mc is not None else ():
+        print(
+            f"{mc['runs']}-run {mc['scenario']} Monte Carlo, {label}, 2 workers: "
+            f"{mc[f'{label}_s']:.1f} s"
+        )
+
+
+if __name__ == "__main__":
+    main()

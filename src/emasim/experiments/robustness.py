@@ -1,0 +1,199 @@
+"""The headline verdicts over the bench's plant uncertainty: a Monte Carlo study of each bench
+experiment, the gains fixed at their nominal tuning, PID and the hybrid run on the same plants.
+
+The uncertainty (UNCERTAINTY, ``--vary`` specs of :mod:`.variation`): friction (Coulomb,
+stiction and viscous together) +-50 %; backlash 0.05 to 0.2 mm; every hinge clearance 0 to
+0.05 mm; the load inertia (rudder and inertia disk together) +-20 %; the load motor's standing
+preload 0 to 400 N*m (the nominal 200 N*m +-100 %); and the sensor-noise seed. All uniform.
+
+For each headline figure and the tuning cost, over the paired samples: the hybrid's win rate
+(the fraction of plants on which its |metric| is below PID's; a run that diverged loses), with
+its exact 95 % (Clopper-Pearson) interval, and the median improvement
+100 * (|PID| - |hybrid|) / |PID| with a distribution-free 95 % interval (the order statistics
+that bracket the median with at least 95 % probability, binomial(n, 1/2)).
+
+The studies live in ``runs/robustness/<scenario>-<key>-<runs>/``, ``key`` a hash of the
+experiment's resolved scenario, the uncertainty and the emasim version: a study of the same
+experiments and version is found again, resumed when interrupted, and shown by a plain
+``emasim reproduce``.
+"""
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.paper_report import (
+    BENCH_SINE_ROWS,
+    BENCH_STEP_ROWS,
+    HEADLINE,
+    HYBRID_LABEL,
+    PID_LABEL,
+)
+from ..output import RUNS_ROOT
+from .study import OK, StudySpec, read_table, run_study
+
+SCENARIOS = ("bench-step", "bench-sine")
+DEFAULT_RUNS = 200
+UNCERTAINTY = (
+    "plant.friction.coulomb_Nm,plant.friction.static_Nm,plant.friction.viscous_Nms_per_rad"
+    "=*uniform(0.5, 1.5)",
+    "plant.backlash.width_mm=uniform(0.05, 0.2)",
+    "plant.linkage.hinge_clearance_mm=uniform(0, 0.05)",
+    "plant.linkage.rudder_inertia_kgm2,plant.rudder_shaft.disk_inertia_kgm2=*uniform(0.8, 1.2)",
+    "plant.load_motor.preload_Nm=uniform(0, 400)",
+    "seed=integers(0, 4294967295)",
+)
+COST = "tuning_cost"
+CONFIDENCE = 0.95
+ROOT = RUNS_ROOT / "robustness"
+
+
+def figures() -> dict[str, tuple[str, str]]:
+    """figure -> (scenario, metric): the five headline figures, and the tuning cost of each
+    bench experiment."""
+    rows = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
+    out = {
+        name: (experiment.replace("_", "-"), rows[experiment][row][0])
+        for name, (experiment, row, _) in HEADLINE.items()
+    }
+    for scenario in SCENARIOS:
+        out[f"{scenario.replace('-', '_')}_tuning_cost"] = (scenario, COST)
+    return out
+
+
+def spec_for(scenario: str, runs: int) -> StudySpec:
+    return StudySpec(scenario, vary=UNCERTAINTY, runs=runs, labels=(PID_LABEL, HYBRID_LABEL))
+
+
+def study_key(scenario: str) -> str:
+    """12 hex digits of the experiment's resolved scenario, the uncertainty and the version."""
+    from .. import __version__
+    from ..scenarios.loader import load_scenario
+
+    resolved = load_scenario(scenario).model_dump(mode="json")
+    text = json.dumps([resolved, UNCERTAINTY, __version__], sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def study_folder(scenario: str, runs: int, root: Path = ROOT) -> Path:
+    return root / f"{scenario}-{study_key(scenario)}-{runs}"
+
+
+def run_robustness(
+    runs: int = DEFAULT_RUNS, root: Path = ROOT, progress=None, client=None, scheduler=None
+) -> dict:
+    """Run (or resume) the Monte Carlo of every bench experiment; return :func:`verdicts`.
+    ``progress(done, total)`` counts the runs of all experiments together."""
+    totals = {scenario: 2 * runs for scenario in SCENARIOS}
+    done = dict.fromkeys(SCENARIOS, 0)
+    tables = {}
+    for scenario in SCENARIOS:
+
+        def told(count, _, scenario=scenario):
+            done[scenario] = count
+            if progress is not None:
+                progress(sum(done.values()), sum(totals.values()))
+
+        study = run_study(
+            spec_for(scenario, runs),
+            study_folder(scenario, runs, root),
+            progress=told,
+            client=client,
+            scheduler=scheduler,
+        )
+        tables[scenario] = study.table
+    return verdicts(tables)
+
+
+def latest(root: Path = ROOT) -> dict | None:
+    """The verdicts of the largest complete robustness study of today's experiments and
+    version, or None when there is none."""
+    tables = {}
+    for scenario in SCENARIOS:
+        found = None
+        for folder in root.glob(f"{scenario}-{study_key(scenario)}-*"):
+            runs = folder.name.rsplit("-", 1)[-1]
+            if not runs.isdigit():
+                continue
+            try:
+                table = read_table(folder)
+            except (OSError, ValueError):
+                continue
+            if len(table) == 2 * int(runs) and (found is None or len(table) > len(found)):
+                found = table
+        if found is None:
+            return None
+        tables[scenario] = found
+    return verdicts(tables)
+
+
+def paired(table, metric: str) -> tuple[np.ndarray, np.ndarray]:
+    """|metric| of PID and of the hybrid on each sample both ran (a diverged run: inf)."""
+    values = {}
+    for label in (PID_LABEL, HYBRID_LABEL):
+        mine = table[table["label"] == label].set_index("sample")
+        value = np.abs(mine[metric].astype(float)) if metric in mine else np.nan
+        values[label] = np.where(mine["status"] == OK, value, np.inf)
+        values[label] = dict(zip(mine.index, values[label], strict=True))
+    samples = sorted(set(values[PID_LABEL]) & set(values[HYBRID_LABEL]))
+    pid = np.array([values[PID_LABEL][s] for s in samples])
+    hybrid = np.array([values[HYBRID_LABEL][s] for s in samples])
+    return pid, hybrid
+
+
+def improvement_pct(pid: np.ndarray, hybrid: np.ndarray) -> np.ndarray:
+    """100 * (|PID| - |hybrid|) / |PID| per sample: 100 when PID alone diverged, -inf when the
+    hybrid alone did, nan when both did or PID's value is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = 100.0 * (pid - hybrid) / pid
+    out = np.where(np.isinf(pid) & np.isfinite(hybrid), 100.0, out)
+    return np.where(np.isfinite(pid) & np.isinf(hybrid), -np.inf, out)
+
+
+def median_interval(x: np.ndarray, confidence: float = CONFIDENCE) -> tuple[float, float]:
+    """Distribution-free interval of the median: the order statistics x(k) and x(n+1-k), with
+    k the largest rank such that P(k <= B <= n-k) >= confidence for B ~ binomial(n, 1/2)."""
+    from scipy.stats import binom
+
+    x = np.sort(x)
+    n = x.size
+    k = int(binom.ppf((1.0 - confidence) / 2.0, n, 0.5))  # P(B < k) <= alpha/2
+    if k < 1:
+        return (-math.inf, math.inf)
+    return float(x[k - 1]), float(x[n - k])
+
+
+def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
+    """runs, win rate and its 95 % interval, median improvement (%) and its 95 % interval."""
+    from scipy.stats import binomtest
+
+    defined = ~(np.isinf(pid) & np.isinf(hybrid)) & ~(np.isnan(pid) | np.isnan(hybrid))
+    pid, hybrid = pid[defined], hybrid[defined]
+    n = int(pid.size)
+    if n == 0:
+        return {"runs": 0}
+    wins = int(np.count_nonzero(hybrid < pid))
+    rate = binomtest(wins, n).proportion_ci(CONFIDENCE, method="exact")
+    gain = improvement_pct(pid, hybrid)
+    gain = gain[~np.isnan(gain)]
+    low, high = median_interval(gain)
+    return {
+        "runs": n,
+        "win_rate": wins / n,
+        "win_rate_ci95": [float(rate.low), float(rate.high)],
+        "median_improvement_pct": float(np.median(gain)),
+        "ci95_pct": [low, high],
+    }
+
+
+def verdicts(tables: dict) -> dict:
+    """figure -> verdict (with its scenario and metric), from each experiment's study table."""
+    out = {}
+    for name, (scenario, metric) in figures().items():
+        if scenario in tables:
+            pid, hybrid = paired(tables[scenario], metric)
+            out[name] = {"scenario": scenario, "metric": metric, **verdict(pid, hybrid)}
+    return out

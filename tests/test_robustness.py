@@ -1,0 +1,120 @@
+"""The robustness of the headline verdicts (emasim.experiments.robustness): the uncertainty it
+samples, and its statistics on tables with known answers."""
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy.stats import beta
+
+from emasim.analysis.paper_report import robustness_lines
+from emasim.experiments.robustness import (
+    COST,
+    improvement_pct,
+    median_interval,
+    paired,
+    spec_for,
+    verdict,
+    verdicts,
+)
+from emasim.experiments.study import plan_study
+from emasim.scenarios.loader import load_scenario
+
+
+def test_the_uncertainty_spans_the_stated_ranges_around_the_nominal_plant():
+    jobs = plan_study(spec_for("bench-step", 40)).jobs
+    nominal = load_scenario("bench-step").plant
+    assert {job.label for job in jobs} == {"PID", "hybrid"}
+    for job in jobs:
+        p = job.scenario.plant
+        assert 0.5 <= p.friction.coulomb_Nm / nominal.friction.coulomb_Nm <= 1.5
+        assert p.friction.static_Nm / p.friction.coulomb_Nm == pytest.approx(
+            nominal.friction.static_Nm / nominal.friction.coulomb_Nm
+        )
+        assert 0.05 <= p.backlash.width_mm <= 0.2
+        assert len(set(p.linkage.hinge_clearance_mm)) == 1
+        assert 0.0 <= p.linkage.hinge_clearance_mm[0] <= 0.05
+        factor = p.rudder_shaft.disk_inertia_kgm2 / nominal.rudder_shaft.disk_inertia_kgm2
+        assert 0.8 <= factor <= 1.2
+        assert p.linkage.rudder_inertia_kgm2 == pytest.approx(
+            factor * nominal.linkage.rudder_inertia_kgm2
+        )
+        assert 0.0 <= p.load_motor.preload_Nm <= 400.0
+    # the gains stay at their nominal tuning
+    tuned = dict(load_scenario("bench-step").variants())
+    for job in jobs:
+        assert job.scenario.controllers == tuned[job.label].controllers
+    # paired: sample k is the same plant for both sets
+    by_sample = {}
+    for job in jobs:
+        by_sample.setdefault(job.sample, []).append(job.scenario.plant)
+    assert all(a == b for a, b in by_sample.values())
+
+
+def test_the_median_interval_of_ten_is_the_second_and_ninth_values():
+    # binomial(10, 1/2): P(B <= 1) = 11/1024 <= 0.025 < P(B <= 2) = 56/1024
+    x = np.array([7.0, 3.0, 9.0, 1.0, 5.0, 2.0, 8.0, 4.0, 10.0, 6.0])
+    assert median_interval(x) == (2.0, 9.0)
+    assert median_interval(np.arange(5.0)) == (-np.inf, np.inf)  # too few for 95 %
+
+
+def test_the_median_interval_covers_the_true_median_at_least_95_percent():
+    rng = np.random.default_rng(0)
+    trials = 2000
+    covered = sum(
+        low <= 0.0 <= high
+        for low, high in (median_interval(rng.standard_cauchy(51)) for _ in range(trials))
+    )
+    assert covered / trials >= 0.95 - 3 * np.sqrt(0.95 * 0.05 / trials)
+
+
+def test_a_verdict_counts_wins_and_takes_the_median_gain():
+    pid = np.linspace(1.0, 2.0, 200)
+    hybrid = np.where(np.arange(200) < 150, 0.5 * pid, 2.0 * pid)  # 150 wins of 200
+    v = verdict(pid, hybrid)
+    assert v["runs"] == 200 and v["win_rate"] == 0.75
+    assert v["median_improvement_pct"] == pytest.approx(50.0)
+    assert v["ci95_pct"] == pytest.approx([50.0, 50.0])
+    # Clopper-Pearson from the beta distribution
+    assert v["win_rate_ci95"] == pytest.approx(
+        [beta.ppf(0.025, 150, 51), beta.ppf(0.975, 151, 50)], rel=1e-9
+    )
+
+
+def test_a_diverged_run_loses_and_both_diverged_is_no_sample():
+    pid = np.array([1.0, np.inf, 1.0, np.inf])
+    hybrid = np.array([np.inf, 1.0, 0.5, np.inf])
+    assert list(improvement_pct(pid, hybrid)[:3]) == [-np.inf, 100.0, 50.0]
+    v = verdict(pid, hybrid)
+    assert v["runs"] == 3 and v["win_rate"] == pytest.approx(2 / 3)
+
+
+def study_table(pid: list, hybrid: list, statuses=None) -> pd.DataFrame:
+    """A study table of a cost column, the rows shuffled (pairing goes by sample)."""
+    n = len(pid)
+    rows = [
+        {"run_id": f"{lb}-{k}", "label": lb, "sample": k, "status": "ok", COST: value}
+        for lb, values in (("PID", pid), ("hybrid", hybrid))
+        for k, value in enumerate(values)
+    ]
+    for k, status in (statuses or {}).items():
+        rows[n + k]["status"] = status
+    return pd.DataFrame(rows).sample(frac=1.0, random_state=1)
+
+
+def test_pairs_are_taken_by_sample_and_a_diverged_run_is_infinite():
+    table = study_table([1.0, 2.0, 3.0], [-0.5, 4.0, 1.0], {2: "diverged: t = 1 s"})
+    pid, hybrid = paired(table, COST)
+    assert list(pid) == [1.0, 2.0, 3.0]
+    assert list(hybrid) == [0.5, 4.0, np.inf]  # magnitudes; the diverged run is inf
+
+
+def test_the_verdicts_and_their_report_lines():
+    table = study_table([2.0] * 20, [1.0] * 18 + [3.0] * 2)
+    out = verdicts({"bench-step": table})
+    cost = out["bench_step_tuning_cost"]
+    assert cost["scenario"] == "bench-step" and cost["runs"] == 20
+    assert cost["win_rate"] == 0.9 and cost["median_improvement_pct"] == 50.0
+    assert "bench_sine_tuning_cost" not in out  # no table for it
+    (line,) = [ln for ln in robustness_lines(out) if ln.startswith("bench step tuning cost")]
+    assert "lower than PID's on 90 % of 20 plants" in line
+    assert "lower with probability 90 %" in line
