@@ -1,13 +1,18 @@
-"""The README's headline table, rendered from ``docs/headline.json``: the abstract's five
-figures, the paper's beside ours, as ``emasim reproduce`` measured them.
+"""The README's headline tables, rendered from ``docs/headline.json`` and
+``docs/robustness.json``: the abstract's five figures, the paper's beside ours, as ``emasim
+reproduce`` measured them, and their robustness over the plant uncertainty, as ``emasim
+reproduce --robustness`` measured it.
 
     python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's headline
-                                                   # in docs/headline.json, rewrite the README
-    python docs/readme_headline.py                 # rewrite the README from docs/headline.json
+                                                   # (and robustness, when it has one) in docs/,
+                                                   # rewrite the README
+    python docs/readme_headline.py                 # rewrite the README from docs/
 
-The README holds the table between ``<!-- headline:begin -->`` and ``<!-- headline:end -->``;
-``tests/test_reproduce.py`` checks that the block equals :func:`render` of the stored headline
-and that a fresh reproduction measures the stored numbers. Standard library only.
+The README holds the tables between ``<!-- headline:begin -->`` and ``<!-- headline:end -->``,
+and ``<!-- robustness:begin -->`` and ``<!-- robustness:end -->``; ``tests/test_reproduce.py``
+checks that the blocks equal :func:`render` and :func:`render_robustness` of the stored
+objects, that a fresh reproduction measures the stored headline, and that its verdicts agree
+with the stored robustness. Standard library only.
 """
 
 import json
@@ -16,15 +21,19 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "headline.json"
+ROBUSTNESS = ROOT / "docs" / "robustness.json"
 README = ROOT / "README.md"
-BEGIN = "<!-- headline:begin -->"
-END = "<!-- headline:end -->"
+BLOCKS = {"headline": "<!-- headline:{}-->", "robustness": "<!-- robustness:{}-->"}
 NAMES = {  # headline key -> the README's wording
     "step_steady_error_reduction": "step steady-state error (RMS)",
     "step_vibration_amplitude_reduction": "step vibration amplitude",
     "step_speed_fluctuation_reduction": "step speed fluctuation",
     "sine_displacement_lag_reduction": 'sine tracking error ("lag")',
     "sine_speed_fluctuation_reduction": "sine speed fluctuation",
+}
+COSTS = {  # robustness key -> the README's wording
+    "bench_step_tuning_cost": "tuning cost, step",
+    "bench_sine_tuning_cost": "tuning cost, sine",
 }
 
 
@@ -56,17 +65,75 @@ def render(headline: dict) -> str:
     return "\n".join(lines)
 
 
-def write_readme(headline: dict) -> None:
+def render_robustness(verdicts: dict, headline: dict) -> str:
+    """The README's table of the robustness object of tables.json, the nominal bench's
+    improvement (the headline object) beside it."""
+    lines = [
+        "| figure | hybrid better than PID on | median change, hybrid against PID "
+        "[95 % interval] | 90 % of plants within | nominal bench |",
+        "|---|---|---|---|---|",
+    ]
+    for key, words in {**NAMES, **COSTS}.items():
+        v = verdicts[key]
+        low, high = (100 * x for x in v["win_rate_ci95"])
+        gain_low, gain_high = v["ci95_pct"]
+        nominal = f"{-100 * headline[key]['ours_reduction']:+.0f} %" if key in headline else "-"
+        lines.append(
+            f"| {words} | {100 * v['win_rate']:.0f} % of {v['runs']} plants "
+            f"[{low:.0f}, {high:.0f}] | {-v['median_improvement_pct']:+.0f} % "
+            f"[{-gain_high:+.0f}, {-gain_low:+.0f}] "
+            f"| {-v['improvement_p95_pct']:+.0f} to {-v['improvement_p05_pct']:+.0f} % "
+            f"| {nominal} |"
+        )
+    verdicts_of = {True: [], False: [], None: []}  # hybrid better, PID better, open
+    for key, words in NAMES.items():
+        low, high = verdicts[key]["win_rate_ci95"]
+        settled = True if low > 0.5 else False if high < 0.5 else None
+        verdicts_of[settled].append(words)
+    against = [
+        w for k, w in NAMES.items() if w in verdicts_of[False] and headline[k]["hybrid_better"]
+    ]
+    lines.append("")
+    lines.append(
+        "Settled for the hybrid (the win rate's interval above one half): "
+        + (", ".join(verdicts_of[True]) or "none")
+        + ". Settled for PID: "
+        + (", ".join(verdicts_of[False]) or "none")
+        + ". Open: "
+        + (", ".join(verdicts_of[None]) or "none")
+        + "."
+        + (
+            f" The nominal bench's verdict does not hold for: {', '.join(against)}."
+            if against
+            else ""
+        )
+    )
+    return "\n".join(lines)
+
+
+def block_of(text: str, name: str) -> str:
+    """The README's text between the block's markers, without the newlines that frame it."""
+    begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
+    return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
+
+
+def write_readme(headline: dict, verdicts: dict) -> None:
     text = README.read_text()
-    start, end = text.index(BEGIN) + len(BEGIN), text.index(END)
-    README.write_text(text[:start] + "\n" + render(headline) + "\n" + text[end:])
+    robustness = render_robustness(verdicts, headline)
+    for name, body in (("headline", render(headline)), ("robustness", robustness)):
+        begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
+        start, stop = text.index(begin) + len(begin), text.index(end)
+        text = text[:start] + "\n" + body + "\n" + text[stop:]
+    README.write_text(text)
 
 
 def main() -> None:
     if len(sys.argv) > 1:
         tables = json.loads((Path(sys.argv[1]) / "tables.json").read_text())
         STORE.write_text(json.dumps(tables["headline"], indent=1) + "\n")
-    write_readme(json.loads(STORE.read_text()))
+        if "robustness" in tables:
+            ROBUSTNESS.write_text(json.dumps(tables["robustness"], indent=1) + "\n")
+    write_readme(json.loads(STORE.read_text()), json.loads(ROBUSTNESS.read_text()))
 
 
 if __name__ == "__main__":

@@ -108,3 +108,15 @@ def test_the_error_examples_print_what_the_readme_says(tmp_path, monkeypatch):
         assert result.stderr.strip() == expected, command
     assert (tmp_path / "thesis" / "thesis.tex").read_text() == "years of work"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]
+
+
+def test_the_metric_windows_the_readme_states_are_the_codes():
+    from emasim.analysis import report
+
+    text = " ".join(README.split())
+    assert (
+        f"the recovery band is {100 * report.RECOVERY_FRACTION:g} % of the dip, but at least "
+        f"{report.RECOVERY_FLOOR_RPM:g} rpm (speed) or {1e3 * report.RECOVERY_FLOOR_MM:g} µm"
+    ) in text
+    assert f"over the last {100 * report.STEADY_FRACTION:g} % of the interval after it" in text
+    assert f"steady statistics from {report.BENCH_STEADY_S:g} s to the end" in text

@@ -118,3 +118,35 @@ def test_the_verdicts_and_their_report_lines():
     (line,) = [ln for ln in robustness_lines(out) if ln.startswith("bench step tuning cost")]
     assert "lower than PID's on 90 % of 20 plants" in line
     assert "lower with probability 90 %" in line
+
+
+def test_wear_scales_each_key_by_its_level_and_reads_the_degradation():
+    from emasim.experiments import wear
+
+    jobs = plan_study(wear.spec_for("bench-sine")).jobs
+    nominal = load_scenario("bench-sine").plant
+    worn = [job for job in jobs if job.label == "hybrid"][-1].scenario.plant
+    assert worn.backlash.width_mm == pytest.approx(3 * nominal.backlash.width_mm)
+    assert worn.linkage.hinge_clearance_mm == pytest.approx(
+        [5 * c for c in nominal.linkage.hinge_clearance_mm]
+    )
+    assert worn.friction.static_Nm == pytest.approx(2 * nominal.friction.static_Nm)
+    rows = [
+        {"run_id": f"{lb}-{k}", "label": lb, "sample": k, "status": "ok", wear.LEVEL: k}
+        | {COST: (k + 1) * (2.0 if lb == "PID" else 1.0)}
+        for lb in ("PID", "hybrid")
+        for k in range(wear.LEVELS)
+    ]
+    out = wear.degradation({"bench-sine": pd.DataFrame(rows)})
+    assert out["bench_sine_tuning_cost"]["PID"] == [2.0, 4.0, 6.0, 8.0, 10.0]
+    assert out["bench_sine_tuning_cost"]["hybrid"] == [1.0, 2.0, 3.0, 4.0, 5.0]
+
+
+def test_the_command_lines_default_is_the_studys():
+    from typer.main import get_command
+
+    from emasim.cli import app
+    from emasim.experiments.robustness import DEFAULT_RUNS
+
+    (runs,) = [p for p in get_command(app).commands["reproduce"].params if p.name == "runs"]
+    assert runs.default == DEFAULT_RUNS

@@ -56,6 +56,14 @@ def test_grids(text, grid):
     assert variation.grid == pytest.approx(grid) if not isinstance(grid[0], str) else grid
 
 
+def test_a_list_of_arrays_gives_each_key_its_own_value():
+    variation = parse_variation("a.x,a.y=*[[1, 1], [1.5, 3]]")
+    assert variation.grid == ([1, 1], [1.5, 3]) and variation.relative
+    assert variation.value_of([1.5, 3], 1) == 3 and variation.column([1.5, 3]) == 1
+    with pytest.raises(InputError, match="one value per key"):
+        parse_variation("a.x,a.y=[[1, 2], [3]]")
+
+
 def test_several_keys_share_one_value_and_a_star_scales():
     variation = parse_variation("a.x,a.y=*uniform(0.5, 1.5)")
     assert variation.keys == ("a.x", "a.y") and variation.relative
@@ -151,6 +159,25 @@ def test_a_star_scales_every_key_by_the_same_factor_of_its_own_value():
         friction = job.scenario.plant.friction
         assert friction.coulomb_Nm == pytest.approx(factor * nominal.coulomb_Nm)
         assert friction.static_Nm == pytest.approx(factor * nominal.static_Nm)
+
+
+def test_zipped_values_scale_each_key_by_its_own_factor():
+    spec = StudySpec(
+        "speed-step",
+        vary=("plant.backlash.width_mm,plant.friction.coulomb_Nm=*[[1, 1], [2, 1.5]]",),
+        labels=("PI",),
+    )
+    nominal = load_scenario("speed-step", controllers=["speed=pi"]).plant
+    first, second = plan_study(spec).jobs
+    assert first.scenario.plant == nominal
+    assert second.scenario.plant.backlash.width_mm == pytest.approx(2 * nominal.backlash.width_mm)
+    assert second.scenario.plant.friction.coulomb_Nm == pytest.approx(
+        1.5 * nominal.friction.coulomb_Nm
+    )
+    assert [job.values for job in (first, second)] == [
+        {"plant.backlash.width_mm,plant.friction.coulomb_Nm": 0},
+        {"plant.backlash.width_mm,plant.friction.coulomb_Nm": 1},
+    ]
 
 
 def test_a_number_for_a_list_sets_every_element():

@@ -196,3 +196,25 @@ def plot_study(table, metrics: list[str], labels: list[str], along: str | None =
     if x_numeric:
         fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=4)
     return fig
+
+
+def plot_wear(degradation: dict):
+    """Each headline figure and tuning cost against the wear level, PID and the hybrid."""
+    names = list(degradation)
+    columns = min(len(names), STUDY_COLUMNS)
+    rows = -(-len(names) // columns)
+    fig = Figure(figsize=(3.6 * columns, 2.8 * rows), layout="constrained")
+    axes = fig.subplots(rows, columns, squeeze=False).ravel()
+    for ax, name in zip(axes, names, strict=False):
+        entry = degradation[name]
+        for label, values in entry.items():
+            if isinstance(values, list) and label != "levels":
+                ax.plot(entry["levels"], values, "o-", ms=3, label=label)
+        ax.set_title(f"{name.removesuffix('_reduction')}\n({entry['metric']})", fontsize=8)
+        ax.set_xlabel("wear level (0 new, 4 worn)")
+        ax.set_xticks(entry["levels"])
+        ax.grid(True, alpha=0.3)
+    for ax in axes[len(names) :]:
+        ax.set_visible(False)
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2)
+    return fig

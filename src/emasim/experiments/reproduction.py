@@ -7,7 +7,6 @@ from pathlib import Path
 from ..analysis.paper_report import (
     EXPERIMENTS,
     SWEEP_CLEARANCES_MM,
-    SWEEP_DURATION_S,
     ablation_rows,
     build_tables,
     notes,
@@ -15,34 +14,35 @@ from ..analysis.paper_report import (
 )
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
+from . import wear
 from .ablation import STAGES, ablation
-from .batch import run_comparison
+from .batch import run_all, run_comparison
 from .robustness import UNCERTAINTY, latest, run_robustness
 
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
 
 
 def clearance_sweep() -> list[dict]:
-    """cosim-step at every hinge clearance of SWEEP_CLEARANCES_MM, SWEEP_DURATION_S long:
-    steady RMS error and vibration amplitude of the rudder, per controller set."""
-    rows = []
+    """cosim-step at every hinge clearance of SWEEP_CLEARANCES_MM, the whole run long (its
+    limit cycle starts about 2 s in): steady RMS error and vibration amplitude of the rudder,
+    per controller set; every run of the sweep at once (run_all)."""
+    runs = []
     for clearance in SWEEP_CLEARANCES_MM:
-        settings = [
-            f"plant.linkage.hinge_clearance_mm=[{clearance}, {clearance}, {clearance}, "
-            f"{clearance}]",
-            f"duration_s={SWEEP_DURATION_S}",
-        ]
-        comparison = run_comparison(load_scenario("cosim-step", settings=settings))
-        for label, m in comparison.metrics.items():
-            rows.append(
-                {
-                    "clearance_mm": clearance,
-                    "controller": label,
-                    "steady_error_rms_deg": m["steady_error_rms_deg"],
-                    "chatter_amplitude_deg": m["chatter_amplitude_deg"],
-                }
-            )
-    return rows
+        scenario = load_scenario(
+            "cosim-step",
+            settings=[f"plant.linkage.hinge_clearance_mm=[{', '.join([str(clearance)] * 4)}]"],
+        )
+        runs += [(clearance, label, variant) for label, variant in scenario.variants()]
+    results = run_all([run[2] for run in runs], labels=[run[1] for run in runs])
+    return [
+        {
+            "clearance_mm": clearance,
+            "controller": label,
+            "steady_error_rms_deg": result.metrics["steady_error_rms_deg"],
+            "chatter_amplitude_deg": result.metrics["chatter_amplitude_deg"],
+        }
+        for (clearance, label, _), result in zip(runs, results, strict=True)
+    ]
 
 
 def _counted(progress):
@@ -61,14 +61,21 @@ def reproduce(
     """Run the paper's experiments (or ``only`` those) and write the report folder; with
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
     for the bench experiments among them. ``robustness_runs``: run (or resume) the Monte Carlo
-    of emasim.experiments.robustness with that many runs per controller set; without it, the
-    report shows the largest complete one of these experiments and version, if any.
+    of emasim.experiments.robustness with that many runs per controller set, and the wear
+    study (emasim.experiments.wear); without it, the report shows the largest complete ones of
+    these experiments and version, if any.
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
     The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
     """
-    from ..analysis.plots import plot_bench, plot_clearance_sweep, plot_comparison, save_figure
+    from ..analysis.plots import (
+        plot_bench,
+        plot_clearance_sweep,
+        plot_comparison,
+        plot_wear,
+        save_figure,
+    )
 
     if out is not None:
         check_folder(Path(out), force)
@@ -91,11 +98,13 @@ def reproduce(
 
     if "headline" in tables:
         if robustness_runs is not None:
-            verdicts = run_robustness(robustness_runs, progress=_counted(progress))
+            tables["robustness"] = run_robustness(robustness_runs, progress=_counted(progress))
+            tables["wear"] = wear.run_wear()
         else:
-            verdicts = latest()
-        if verdicts:
-            tables["robustness"] = verdicts
+            tables["robustness"], tables["wear"] = latest(), wear.latest()
+        for key in ("robustness", "wear"):
+            if not tables[key]:
+                del tables[key]
 
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
@@ -112,6 +121,9 @@ def reproduce(
             path = f"figures/{name}.png"
             save_figure(fig, folder / path)
             figures[name] = [(name, path)]
+        if "wear" in tables:
+            save_figure(plot_wear(tables["wear"]), folder / "figures/wear.png")
+            figures["wear"] = [("wear", "figures/wear.png")]
         if "clearance_sweep" in tables:
             path = "figures/clearance-sweep.png"
             save_figure(plot_clearance_sweep(tables["clearance_sweep"]), folder / path)

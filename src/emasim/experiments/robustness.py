@@ -10,7 +10,8 @@ For each headline figure and the tuning cost, over the paired samples: the hybri
 (the fraction of plants on which its |metric| is below PID's; a run that diverged loses), with
 its exact 95 % (Clopper-Pearson) interval, and the median improvement
 100 * (|PID| - |hybrid|) / |PID| with a distribution-free 95 % interval (the order statistics
-that bracket the median with at least 95 % probability, binomial(n, 1/2)).
+that bracket the median with at least 95 % probability, binomial(n, 1/2)); and the 5 % and
+95 % quantiles of the improvement, its spread over the plants.
 
 The studies live in ``runs/robustness/<scenario>-<key>-<runs>/``, ``key`` a hash of the
 experiment's resolved scenario, the uncertainty and the emasim version: a study of the same
@@ -48,6 +49,7 @@ UNCERTAINTY = (
 )
 COST = "tuning_cost"
 CONFIDENCE = 0.95
+SPREAD = (0.05, 0.95)  # the quantiles of the improvement over the plants that show its spread
 ROOT = RUNS_ROOT / "robustness"
 
 
@@ -68,13 +70,14 @@ def spec_for(scenario: str, runs: int) -> StudySpec:
     return StudySpec(scenario, vary=UNCERTAINTY, runs=runs, labels=(PID_LABEL, HYBRID_LABEL))
 
 
-def study_key(scenario: str) -> str:
-    """12 hex digits of the experiment's resolved scenario, the uncertainty and the version."""
+def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY) -> str:
+    """12 hex digits of the experiment's resolved scenario, what a study varies (``specs``)
+    and the emasim version."""
     from .. import __version__
     from ..scenarios.loader import load_scenario
 
     resolved = load_scenario(scenario).model_dump(mode="json")
-    text = json.dumps([resolved, UNCERTAINTY, __version__], sort_keys=True)
+    text = json.dumps([resolved, specs, __version__], sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
@@ -167,7 +170,8 @@ def median_interval(x: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
 
 
 def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
-    """runs, win rate and its 95 % interval, median improvement (%) and its 95 % interval."""
+    """runs, win rate and its 95 % interval, median improvement (%) with its 95 % interval, and
+    the improvement's 5 % and 95 % quantiles."""
     from scipy.stats import binomtest
 
     defined = ~(np.isinf(pid) & np.isinf(hybrid)) & ~(np.isnan(pid) | np.isnan(hybrid))
@@ -180,12 +184,15 @@ def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
     gain = improvement_pct(pid, hybrid)
     gain = gain[~np.isnan(gain)]
     low, high = median_interval(gain)
+    spread = np.quantile(gain, SPREAD, method="nearest")  # no interpolation with an inf
     return {
         "runs": n,
         "win_rate": wins / n,
         "win_rate_ci95": [float(rate.low), float(rate.high)],
         "median_improvement_pct": float(np.median(gain)),
         "ci95_pct": [low, high],
+        "improvement_p05_pct": float(spread[0]),
+        "improvement_p95_pct": float(spread[1]),
     }
 
 

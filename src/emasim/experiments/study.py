@@ -13,7 +13,7 @@ plants (paired). Its folder holds
   ``result.parquet``;
 * ``metrics.parquet``: one row per finished run: ``run_id``, ``label``, ``sample``, ``status``
   ('ok' or 'diverged: ...'), each variation's value (the factor for a '*' variation), then every
-  metric; rewritten (atomically) after each run;
+  metric; rewritten atomically as runs finish (at most every TABLE_EVERY_S, and at the end);
 * ``summary/``: ``summary.md`` and ``summary.json`` (each metric's distribution for each
   controller set) and ``distributions.png``, written when the study is complete.
 
@@ -31,6 +31,7 @@ import hashlib
 import io
 import json
 import os
+import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,6 +58,7 @@ SUMMARY_FOLDER = "summary"
 ROW_KEYS = ("run_id", "label", "sample", "status")
 TABLE_TAG = b"emasim study metrics"  # in metrics.parquet's schema metadata: the file is ours
 OK = "ok"
+TABLE_EVERY_S = 1.0  # metrics.parquet is rewritten at most this often while runs finish
 
 
 @dataclass(frozen=True)
@@ -139,12 +141,16 @@ def plan_study(spec: StudySpec) -> Plan:
             f"--label: {unknown[0]!r} is no controller set of {nominal.name}; "
             f"choose from: {', '.join(variants)}"
         )
+    slugs = [slug(label) for label in labels]
+    shared = [name for name in slugs if slugs.count(name) > 1]
+    if shared:
+        raise InputError(f"--label: two controller sets share the run folder name {shared[0]!r}")
     variations = [parse_variation(text) for text in spec.vary]
     if spec.seeds > 1:
         if any("seed" in v.keys for v in variations):
             raise InputError("--seeds: the seed is varied by --vary already; give one of them")
         seeds = tuple(range(nominal.seed, nominal.seed + spec.seeds))
-        variations.append(Variation("seed", ("seed",), seeds, None, False, f"--seeds {spec.seeds}"))
+        variations.append(Variation("seed", ("seed",), seeds, None, False))
     points = samples(variations, spec.runs, spec.seed)
     jobs = []
     for label in labels:
@@ -152,7 +158,8 @@ def plan_study(spec: StudySpec) -> Plan:
         for point in points:
             scenario = _sample_scenario(variants[label], base, variations, point.values, source)
             run_id = f"{slug(label)}-{point.index:05d}"
-            jobs.append(Job(run_id, label, point.index, point.values, scenario))
+            columns = {v.name: v.column(point.values[v.name]) for v in variations}
+            jobs.append(Job(run_id, label, point.index, columns, scenario))
     digest = hashlib.sha256()
     for job in jobs:
         text = json.dumps(job.scenario.model_dump(mode="json"), sort_keys=True)
@@ -179,8 +186,8 @@ def _sample_scenario(raw: dict, base, variations: list[Variation], values: dict,
     table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
     resolved = base.model_dump(mode="json")
     for variation in variations:
-        value = values[variation.name]
-        for key in variation.keys:
+        for i, key in enumerate(variation.keys):
+            value = variation.value_of(values[variation.name], i)
             nominal = _resolved(resolved, key)
             if isinstance(nominal, list) and _is_number(value):
                 value_of = [value * x if variation.relative else value for x in nominal]
@@ -319,9 +326,13 @@ def run_study(
             progress(len(rows), total)
         write_table(folder, rows, plan)
 
+        written = [time.monotonic()]
+
         def on_done(_, row):
             rows[row["run_id"]] = row
-            write_table(folder, rows, plan)
+            if time.monotonic() - written[0] >= TABLE_EVERY_S:
+                write_table(folder, rows, plan)
+                written[0] = time.monotonic()
             if progress is not None:
                 progress(len(rows), total)
 
@@ -335,7 +346,10 @@ def run_study(
                 if client
                 else dask_client(scheduler, workers) as used
             ):
-                map_runs(run_and_write, jobs, used, on_done, first_alone=True)
+                try:
+                    map_runs(run_and_write, jobs, used, on_done, first_alone=True)
+                finally:
+                    write_table(folder, rows, plan)  # every run that finished
         table = as_frame(rows, plan)
         study = Study(folder, table, plan)
         if study.complete:

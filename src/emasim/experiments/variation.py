@@ -4,7 +4,9 @@ KEY is a dotted scenario key (``plant.backlash.width_mm``, ``load.rudder_Nm.0.va
 ``seed``), or several joined by commas that take one value together. SPEC is one of
 
 * a value or a list, the points of a grid: ``0.1``, ``0.05,0.1,0.2``, ``[0.05, 0.1]``
-  (each item read as TOML: numbers, booleans, strings);
+  (each item read as TOML: numbers, booleans, strings); for several keys, a list of arrays
+  gives each key its own value at each point, ``a,b=[[1, 10], [2, 20]]``, and the study's
+  column for them holds the point's place in the list (0, 1, ...);
 * a range, also a grid: ``linspace(a, b, n)`` (n evenly spaced values from a to b) or
   ``geomspace(a, b, n)`` (n values in geometric progression from a to b);
 * a distribution, drawn afresh for each Monte Carlo run: ``uniform(a, b)``,
@@ -48,7 +50,15 @@ class Variation:
     grid: tuple | None
     distribution: tuple[str, tuple[float, ...]] | None
     relative: bool
-    text: str
+
+    def value_of(self, value, i: int):
+        """The value the ``i``-th key takes when the variation's value is ``value``."""
+        return value[i] if isinstance(value, list) else value
+
+    def column(self, value):
+        """What the study's table holds for ``value``: the place in the grid of a list of
+        arrays, else the value."""
+        return self.grid.index(value) if isinstance(value, list) else value
 
     def draw(self, rng: np.random.Generator):
         """One value of the distribution."""
@@ -75,9 +85,16 @@ def parse_variation(text: str) -> Variation:
     call = _CALL.match(body)
     if call is None:
         values = _values(body, where)
-        if relative and not all(_is_number(v) for v in values):
+        zipped = any(isinstance(v, list) for v in values)
+        if zipped and not all(isinstance(v, list) and len(v) == len(keys) for v in values):
+            raise InputError(
+                f"{where}: each item of a list of arrays needs one value per key "
+                f"({len(keys)}), got {body!r}"
+            )
+        numbers = [x for v in values for x in (v if zipped else [v])]
+        if relative and not all(_is_number(x) for x in numbers):
             raise InputError(f"{where}: a '*' factor must be a number, got {body!r}")
-        return Variation(name, keys, values, None, relative, text)
+        return Variation(name, keys, values, None, relative)
     kind, args = call["name"], _numbers(call["args"], where)
     expected = DISTRIBUTIONS.get(kind, RANGES.get(kind))
     if expected is None:
@@ -86,9 +103,9 @@ def parse_variation(text: str) -> Variation:
     if len(args) != expected:
         raise InputError(f"{where}: {kind} takes {expected} numbers, got {len(args)}")
     if kind in RANGES:
-        return Variation(name, keys, _range(kind, args, where), None, relative, text)
+        return Variation(name, keys, _range(kind, args, where), None, relative)
     _check_distribution(kind, args, where)
-    return Variation(name, keys, None, (kind, tuple(args)), relative, text)
+    return Variation(name, keys, None, (kind, tuple(args)), relative)
 
 
 def _is_number(value) -> bool:
@@ -96,7 +113,14 @@ def _is_number(value) -> bool:
 
 
 def _values(body: str, where: str) -> tuple:
-    """The items of a list SPEC, each read as TOML (a bare word is a string)."""
+    """The items of a list SPEC, each read as TOML (a bare word is a string); a list of
+    arrays as the TOML array it is."""
+    if body.startswith("[["):
+        try:
+            items = tomllib.loads(f"v = {body}")["v"]
+        except tomllib.TOMLDecodeError as err:
+            raise InputError(f"{where}: not a list of arrays ({err})") from None
+        return tuple(items)
     inner = body[1:-1] if body.startswith("[") and body.endswith("]") else body
     items = [item.strip() for item in inner.split(",")]
     if not all(items):
