@@ -65,6 +65,11 @@ def render(headline: dict) -> str:
     return "\n".join(lines)
 
 
+def signed(x: float) -> str:
+    """A whole percentage with its sign, the minus as in the headline table (−91 %, +17 %)."""
+    return f"{x:+.0f}".replace("-", "−")
+
+
 def render_robustness(verdicts: dict, headline: dict) -> str:
     """The README's table of the robustness object of tables.json, the nominal bench's
     improvement (the headline object) beside it."""
@@ -77,12 +82,12 @@ def render_robustness(verdicts: dict, headline: dict) -> str:
         v = verdicts[key]
         low, high = (100 * x for x in v["win_rate_ci95"])
         gain_low, gain_high = v["ci95_pct"]
-        nominal = f"{-100 * headline[key]['ours_reduction']:+.0f} %" if key in headline else "-"
+        nominal = f"{signed(-100 * headline[key]['ours_reduction'])} %" if key in headline else "-"
         lines.append(
             f"| {words} | {100 * v['win_rate']:.0f} % of {v['runs']} plants "
-            f"[{low:.0f}, {high:.0f}] | {-v['median_improvement_pct']:+.0f} % "
-            f"[{-gain_high:+.0f}, {-gain_low:+.0f}] "
-            f"| {-v['improvement_p95_pct']:+.0f} to {-v['improvement_p05_pct']:+.0f} % "
+            f"[{low:.0f}, {high:.0f}] | {signed(-v['median_improvement_pct'])} % "
+            f"[{signed(-gain_high)}, {signed(-gain_low)}] "
+            f"| {signed(-v['improvement_p95_pct'])} to {signed(-v['improvement_p05_pct'])} % "
             f"| {nominal} |"
         )
     verdicts_of = {True: [], False: [], None: []}  # hybrid better, PID better, open
