@@ -16,6 +16,7 @@ from emasim.interface import LIMIT_CURRENT, LIMIT_SPEED, LIMIT_VOLTAGE
 RPM = math.pi / 30.0  # rad/s per rpm
 DEG = math.pi / 180.0  # rad per deg
 ARM_MM = 238.7  # lumped rudder arm of the bench scenarios
+MAX_CURRENT_A = 58.0
 
 
 class FakeResult:
@@ -30,6 +31,10 @@ class FakeResult:
     def columns(self):
         return list(self._columns)
 
+    @property
+    def outer_loop(self):
+        return "speed" if self.scenario["reference"].get("speed_rpm") else "position"
+
     def __getitem__(self, name):
         return self._columns[name]
 
@@ -41,7 +46,7 @@ def grid(t_end, dt):
 def step_scenario(key, final, t_load=None):
     scenario = {
         "reference": {key: [{"type": "step", "time_s": 0.0, "final": final}]},
-        "plant": {},
+        "plant": {"motor": {"max_current_A": MAX_CURRENT_A}},
         "load": {},
     }
     if t_load is not None:
@@ -474,6 +479,10 @@ def test_run_metrics_dispatch_and_limits():
     out = r.run_metrics(result)
     assert out["load_recovery_time_s"] == pytest.approx(0.02 * math.log(10.0), rel=1e-4)
     assert out["current_saturation_time_s"] == 0.0
+    # tuning cost: IAE = 1000 rpm * TAU (the rise) + 50 rpm * 0.02 s (the dip), over
+    # T * max|ref| = 2 s * 1000 rpm; the current command is constant, so no chattering price
+    iae = 1000.0 * TAU * (1 - math.exp(-T_LOAD / TAU)) + 50.0 * 0.02
+    assert out["tuning_cost"] == pytest.approx(iae / (SPEED_RUN * 1000.0), rel=1e-3)
 
 
 def test_reference_kind_and_load_step_time():
