@@ -188,3 +188,17 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
     assert abs(pos["RBF+SMC"]["load_dip_mm"]) < 1e-3  # "less than a micrometre"
     ratios = [min(hunting) / pos[k]["steady_error_rms_mm"] for k in ("SMC", "RBF+SMC")]
     assert 10 <= min(ratios) and max(ratios) <= 100  # "10 to 100 times below that"
+
+
+def test_the_clearance_sweep_at_the_benchs_clearance_is_the_cosim_step_run(report):
+    """The sweep's runs are whole runs: at the scenario's own clearance a sweep row is the
+    cosim-step comparison itself, limit cycle included."""
+    tables = json.loads((report / "tables.json").read_text())
+    scenario = tomllib.loads((report / "runs" / "cosim-step" / "scenario.toml").read_text())
+    (own,) = set(scenario["plant"]["linkage"]["hinge_clearance_mm"])
+    nominal = {r["controller"]: r for r in tables["cosim_step"]}
+    rows = [r for r in tables["clearance_sweep"] if r["clearance_mm"] == own]
+    assert {r["controller"] for r in rows} == set(nominal)
+    for row in rows:
+        for key in ("steady_error_rms_deg", "chatter_amplitude_deg"):
+            assert row[key] == nominal[row["controller"]][key], (row["controller"], key)

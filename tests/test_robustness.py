@@ -150,3 +150,23 @@ def test_the_command_lines_default_is_the_studys():
 
     (runs,) = [p for p in get_command(app).commands["reproduce"].params if p.name == "runs"]
     assert runs.default == DEFAULT_RUNS
+
+
+def test_the_sensitivity_names_the_parameter_the_improvement_follows():
+    from emasim.experiments.robustness import UNCERTAINTY, sensitivity
+
+    backlash = "plant.backlash.width_mm"
+    assert any(spec.startswith(backlash + "=") for spec in UNCERTAINTY)
+    rng = np.random.default_rng(4)
+    n = 50
+    width = rng.uniform(0.05, 0.2, n)
+    noise = rng.uniform(0.0, 1.0, n)  # another sampled column the gain does not follow
+    hybrid = 1.0 - 4.0 * width  # better the wider the gap: the gain rises with the width
+    rows = [
+        {"run_id": f"{lb}-{k}", "label": lb, "sample": k, "status": "ok"}
+        | {backlash: width[k], "plant.load_motor.preload_Nm": noise[k], COST: value}
+        for lb, values in (("PID", np.ones(n)), ("hybrid", hybrid))
+        for k, value in enumerate(values)
+    ]
+    found = sensitivity(pd.DataFrame(rows), COST)
+    assert found["parameter"] == backlash and found["spearman"] == pytest.approx(1.0)

@@ -404,6 +404,12 @@ def robustness_lines(verdicts: dict, headline: dict | None = None) -> list[str]:
             f"{100 * max(v['win_rate'], 1 - v['win_rate']):.0f} %; median improvement "
             f"{v['median_improvement_pct']:.0f} % {_interval(v['ci95_pct'])} %."
         )
+        sensitive = v.get("most_sensitive_to") or {}
+        if sensitive:
+            line += (
+                f" The improvement follows `{sensitive['parameter']}` most (Spearman "
+                f"{sensitive['spearman']:+.2f})."
+            )
         low, high = v["win_rate_ci95"]
         if not low < 0.5 < high and headline and name in headline:
             if headline[name]["hybrid_better"] != (low > 0.5):

@@ -11,7 +11,8 @@ For each headline figure and the tuning cost, over the paired samples: the hybri
 its exact 95 % (Clopper-Pearson) interval, and the median improvement
 100 * (|PID| - |hybrid|) / |PID| with a distribution-free 95 % interval (the order statistics
 that bracket the median with at least 95 % probability, binomial(n, 1/2)); and the 5 % and
-95 % quantiles of the improvement, its spread over the plants.
+95 % quantiles of the improvement, its spread over the plants; and the sampled parameter the
+improvement follows most (the largest |Spearman rank correlation|).
 
 The studies live in ``runs/robustness/<scenario>-<key>-<runs>/``, ``key`` a hash of the
 experiment's resolved scenario, the uncertainty and the emasim version: a study of the same
@@ -133,18 +134,44 @@ def latest(root: Path = ROOT) -> dict | None:
     return verdicts(tables)
 
 
+def sensitivity(table, metric: str) -> dict:
+    """The sampled parameter the improvement follows most: the varied column with the largest
+    |Spearman rank correlation| with the per-sample improvement (the seed left out)."""
+    from scipy.stats import spearmanr
+
+    samples, pid, hybrid = _by_sample(table, metric)
+    gain = improvement_pct(pid, hybrid)
+    usable = np.isfinite(gain)
+    mine = table[table["label"] == PID_LABEL].set_index("sample").loc[samples]
+    best = {}
+    for name in (v.split("=", 1)[0] for v in UNCERTAINTY):
+        if name == "seed" or name not in mine or usable.sum() < 3:
+            continue
+        rho = float(spearmanr(mine[name].to_numpy()[usable], gain[usable]).statistic)
+        if math.isfinite(rho) and abs(rho) > abs(best.get("spearman", 0.0)):
+            best = {"parameter": name, "spearman": rho}
+    return best
+
+
 def paired(table, metric: str) -> tuple[np.ndarray, np.ndarray]:
     """|metric| of PID and of the hybrid on each sample both ran (a diverged run: inf)."""
+    _, pid, hybrid = _by_sample(table, metric)
+    return pid, hybrid
+
+
+def _by_sample(table, metric: str) -> tuple[list, np.ndarray, np.ndarray]:
+    """(the samples both controller sets ran, PID's and the hybrid's |metric| on each)."""
     values = {}
     for label in (PID_LABEL, HYBRID_LABEL):
         mine = table[table["label"] == label].set_index("sample")
         value = np.abs(mine[metric].astype(float)) if metric in mine else np.nan
-        values[label] = np.where(mine["status"] == OK, value, np.inf)
-        values[label] = dict(zip(mine.index, values[label], strict=True))
+        values[label] = dict(
+            zip(mine.index, np.where(mine["status"] == OK, value, np.inf), strict=True)
+        )
     samples = sorted(set(values[PID_LABEL]) & set(values[HYBRID_LABEL]))
     pid = np.array([values[PID_LABEL][s] for s in samples])
     hybrid = np.array([values[HYBRID_LABEL][s] for s in samples])
-    return pid, hybrid
+    return samples, pid, hybrid
 
 
 def improvement_pct(pid: np.ndarray, hybrid: np.ndarray) -> np.ndarray:
@@ -203,4 +230,5 @@ def verdicts(tables: dict) -> dict:
         if scenario in tables:
             pid, hybrid = paired(tables[scenario], metric)
             out[name] = {"scenario": scenario, "metric": metric, **verdict(pid, hybrid)}
+            out[name]["most_sensitive_to"] = sensitivity(tables[scenario], metric)
     return out
