@@ -41,3 +41,29 @@ def test_this_process_and_its_children_use_the_keyed_folder():
 def test_a_users_cache_base_is_kept_as_the_parent(tmp_path):
     assert keyed_folder(tmp_path, "abc") == tmp_path / "emasim-abc"
     assert keyed_folder(tmp_path / "emasim-abc", "abc") == tmp_path / "emasim-abc"
+
+
+def test_a_cache_without_the_engine_loop_is_cold(tmp_path):
+    from emasim.numba_cache import is_cold
+
+    assert is_cold(tmp_path)
+    (tmp_path / "sim_0123").mkdir()
+    (tmp_path / "sim_0123" / "engine.record-242.py311.nbi").write_bytes(b"")
+    assert is_cold(tmp_path)  # another function's index: the loop still compiles
+    (tmp_path / "sim_0123" / "engine.run_ticks-325.py311.nbi").write_bytes(b"")
+    assert not is_cold(tmp_path)
+
+
+def test_the_command_line_says_when_it_compiles(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from emasim import numba_cache
+    from emasim.cli import app
+
+    monkeypatch.setattr(numba_cache, "is_cold", lambda folder: True)
+    command = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.01", "--no-plot"]
+    result = CliRunner().invoke(app, [*command, "--out", str(tmp_path / "r")])
+    assert result.exit_code == 0
+    assert "compiling the simulation core: first run only" in result.output
+    bad = CliRunner().invoke(app, ["run", "speed-step", "--set", "duration_s=-1"])
+    assert bad.exit_code == 2 and "compiling" not in bad.output  # bad input: its one line only

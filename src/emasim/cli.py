@@ -76,6 +76,14 @@ app = typer.Typer(
 FORCE_HELP = "replace an earlier emasim result there (never anything emasim did not write)"
 
 
+def _notice_compile() -> None:
+    """One line before the one-off compile of the simulation core (numba's cache is cold)."""
+    from . import NUMBA_CACHE_DIR, numba_cache
+
+    if numba_cache.is_cold(NUMBA_CACHE_DIR):
+        err_console.print("compiling the simulation core: first run only", highlight=False)
+
+
 def _fail(err: Exception) -> None:
     _say_error(err)
     raise typer.Exit(code=2)
@@ -218,6 +226,7 @@ def run(
         check_fmu_trust(sc, trust_fmu)
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time
+        _notice_compile()
         progress = _LazyProgress(f"simulating {sc.name}")
         try:
             if sc.compare:
@@ -289,6 +298,7 @@ def tune(
         study_storage = open_storage(url)
     except EmasimError as err:
         _fail(err)
+    _notice_compile()
 
     def report(label, before, after):
         shown = "n/a (its trial was interrupted)" if before is None else f"{before:.5g}"
@@ -463,6 +473,7 @@ def reproduce(
     try:
         if out is not None:
             check_folder(out, force)
+        _notice_compile()
         folder = run_all(
             out,
             only=only,

@@ -54,3 +54,9 @@ def configure() -> Path:
 
         config.CACHE_DIR = str(folder)
     return folder
+
+
+def is_cold(folder: Path) -> bool:
+    """True when ``folder`` (a keyed cache) holds no compiled engine loop yet: the next run
+    compiles the simulation core, once."""
+    return not any(folder.glob("*/engine.run_ticks-*.nbi"))
