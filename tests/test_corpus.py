@@ -908,13 +908,25 @@ def wait_for(condition, proc: subprocess.Popen) -> None:
 KILL_RUN = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=1", "--out", "out/X"]
 
 
-@pytest.mark.parametrize("delay", ["0.5s", "1.5s", "2.5s", "4s", "at-temporary"])
-def test_process_killed_leaves_result_complete_or_absent(work, delay):
+def _written(work: Path, name: str) -> bool:
+    """A file ``name`` inside a temporary result folder: the write is under way."""
+    return any((tmp / name).exists() for tmp in leftovers(work))
+
+
+# where in the run the kill lands: each moment is a condition on the files, never a time
+KILL_AT = {
+    "start": lambda work: True,
+    "temporary": lambda work: bool(leftovers(work)),
+    "traces-written": lambda work: _written(work, "result.parquet"),
+    "records-written": lambda work: _written(work, "meta.json"),
+    "published": lambda work: (work / "out" / "X").exists(),
+}
+
+
+@pytest.mark.parametrize("moment", list(KILL_AT))
+def test_process_killed_leaves_result_complete_or_absent(work, moment):
     proc = start(work, *KILL_RUN)
-    if delay == "at-temporary":
-        wait_for(lambda: leftovers(work), proc)
-    else:
-        time.sleep(float(delay[:-1]))
+    wait_for(lambda: KILL_AT[moment](work), proc)
     kill(proc)
     target = work / "out" / "X"
     if os.path.lexists(target):
