@@ -154,9 +154,9 @@ def plan_study(spec: StudySpec) -> Plan:
     points = samples(variations, spec.runs, spec.seed)
     jobs = []
     for label in labels:
-        base = validate_scenario(variants[label], source)
+        resolved = validate_scenario(variants[label], source).model_dump(mode="json")
         for point in points:
-            scenario = _sample_scenario(variants[label], base, variations, point.values, source)
+            scenario = _sample_scenario(variants[label], resolved, variations, point.values, source)
             run_id = f"{slug(label)}-{point.index:05d}"
             columns = {v.name: v.column(point.values[v.name]) for v in variations}
             jobs.append(Job(run_id, label, point.index, columns, scenario))
@@ -179,12 +179,13 @@ def _variant_tables(raw: dict, nominal) -> dict[str, dict]:
     }
 
 
-def _sample_scenario(raw: dict, base, variations: list[Variation], values: dict, source: str):
+def _sample_scenario(
+    raw: dict, resolved: dict, variations: list[Variation], values: dict, source: str
+):
     """The validated scenario of one sample: each variation's value set on a copy of ``raw``.
-    A '*' variation multiplies ``base``'s resolved value; a number given for a key that holds
-    a list of numbers (the linkage's four hinge clearances) sets every element."""
+    A '*' variation multiplies the ``resolved`` scenario's value; a number given for a key
+    that holds a list of numbers (the linkage's four hinge clearances) sets every element."""
     table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
-    resolved = base.model_dump(mode="json")
     for variation in variations:
         for i, key in enumerate(variation.keys):
             value = variation.value_of(values[variation.name], i)
