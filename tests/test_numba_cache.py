@@ -44,14 +44,30 @@ def test_a_users_cache_base_is_kept_as_the_parent(tmp_path):
 
 
 def test_a_cache_without_the_engine_loop_is_cold(tmp_path):
-    from emasim.numba_cache import is_cold
+    from emasim.numba_cache import engine_subfolder, is_cold
 
     assert is_cold(tmp_path)
-    (tmp_path / "sim_0123").mkdir()
-    (tmp_path / "sim_0123" / "engine.record-242.py311.nbi").write_bytes(b"")
+    other = tmp_path / "sim_0123"  # another installation's copy of the engine
+    other.mkdir()
+    (other / "engine.run_ticks-325.py311.nbi").write_bytes(b"")
+    assert is_cold(tmp_path)
+    mine = engine_subfolder(tmp_path)
+    mine.mkdir()
+    (mine / "engine.record-242.py311.nbi").write_bytes(b"")
     assert is_cold(tmp_path)  # another function's index: the loop still compiles
-    (tmp_path / "sim_0123" / "engine.run_ticks-325.py311.nbi").write_bytes(b"")
+    (mine / "engine.run_ticks-325.py311.nbi").write_bytes(b"")
     assert not is_cold(tmp_path)
+
+
+def test_after_a_run_the_cache_this_process_uses_is_warm():
+    """The sub-folder rule is numba's: once this process has run the engine, it is there."""
+    from emasim import NUMBA_CACHE_DIR
+    from emasim.numba_cache import is_cold
+    from emasim.scenarios.loader import load_scenario
+    from emasim.sim.engine import simulate
+
+    simulate(load_scenario("speed-step", controllers=["speed=pi"]).setup().with_(duration_s=1e-3))
+    assert not is_cold(NUMBA_CACHE_DIR)
 
 
 def test_the_command_line_says_when_it_compiles(tmp_path, monkeypatch):

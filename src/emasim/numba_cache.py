@@ -56,7 +56,15 @@ def configure() -> Path:
     return folder
 
 
+def engine_subfolder(folder: Path) -> Path:
+    """Where numba caches ``sim/engine.py`` of this installation inside ``folder``: numba names
+    the sub-folder by the source's folder, ``<name>_<sha1 of its absolute path>`` (its
+    user-provided cache locator), so each installed copy has its own."""
+    source = os.path.abspath(PACKAGE / "sim")
+    return folder / f"sim_{hashlib.sha1(source.encode()).hexdigest()}"
+
+
 def is_cold(folder: Path) -> bool:
-    """True when ``folder`` (a keyed cache) holds no compiled engine loop yet: the next run
-    compiles the simulation core, once."""
-    return not any(folder.glob("*/engine.run_ticks-*.nbi"))
+    """True when ``folder`` (a keyed cache) holds no compiled engine loop of this installation
+    yet: the next run compiles the simulation core, once."""
+    return not any(engine_subfolder(folder).glob("engine.run_ticks-*.nbi"))
