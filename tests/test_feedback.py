@@ -1,4 +1,5 @@
-"""The position loop closes on the rod sensor or on the rudder encoder (loop.position_feedback).
+"""The position loop closes on the rod sensor, the rudder encoder or the motor encoder
+(loop.position_feedback).
 
 With rudder feedback the position controller sees the rod position that the rigid kinematics
 give for the encoder's angle (emasim.scenarios.schema.rudder_rod_grid, the same map the rudder
@@ -8,7 +9,10 @@ reference goes through), so the hinge clearances sit inside the loop. Checks:
   run to round-off;
 * on the linkage, with ideal sensors, the loop's position reading is the map of the true
   rudder angle, and it differs from the rod's own position by the play of the clearances;
-* rudder feedback without a position loop is refused.
+* with motor feedback (the semi-closed loop) the loop reads K theta_m, the nut's travel, and the
+  backlash sits outside the loop: at rest after the step the nut holds the command and the rod
+  stands off it, within the half gap;
+* rudder and motor feedback without a position loop are refused.
 """
 
 import numpy as np
@@ -44,6 +48,19 @@ def test_on_the_linkage_the_loop_reads_the_rudder_through_the_kinematics():
     assert play.max() > 1e-7  # the clearances (0.01 mm at four hinges) are inside the loop
 
 
-def test_rudder_feedback_needs_a_position_loop():
+def test_motor_feedback_reads_the_encoder_as_the_nut_travel():
+    ideal = ["duration_s=2.5", "sensors='ideal'", "plant.backlash.width_mm=0.4"]
+    scenario, motor = run("position-step", *ideal, "loop.position_feedback='motor'")
+    k = scenario.plant.ratio_m_per_rad
+    assert np.max(np.abs(motor["measured_position_m"] - k * motor["motor_angle_rad"])) < 1e-15
+    target = motor["position_ref_m"][-1]
+    half_gap = 0.2e-3
+    # at rest the nut holds the command; the rod is where the gap left it, within it
+    assert abs(k * motor["motor_angle_rad"][-1] - target) < 1e-6
+    assert 1e-5 < abs(motor["actuator_position_m"][-1] - target) <= 1.01 * half_gap
+
+
+@pytest.mark.parametrize("feedback", ["rudder", "motor"])
+def test_encoder_feedback_needs_a_position_loop(feedback):
     with pytest.raises(InputError, match="position_feedback"):
-        load_scenario("speed-step", settings=[RUDDER])
+        load_scenario("speed-step", settings=[f"loop.position_feedback='{feedback}'"])

@@ -182,8 +182,10 @@ class Load(Strict):
 
 class Loop(Strict):
     """How the loops are implemented: the controllers' computation delay, and the sensor the
-    position loop closes on (the rod's displacement sensor, or the rudder encoder read as
-    the rod position the rigid kinematics give for its angle)."""
+    position loop closes on: the rod's displacement sensor ('rod'), the rudder encoder read as
+    the rod position the rigid kinematics give for its angle ('rudder'), or the motor encoder
+    read as the nut's travel K theta_m ('motor': the semi-closed loop of an EMA without an
+    output sensor in the loop, which leaves the backlash and the compliance outside it)."""
 
     computation_delay_s: float = Field(
         default=0.0,
@@ -192,7 +194,7 @@ class Loop(Strict):
         description="from sampling to applying the voltage: a whole number of solver.step_s, "
         "at most solver.sample_period_s",
     )
-    position_feedback: Literal["rod", "rudder"] = "rod"
+    position_feedback: Literal["rod", "rudder", "motor"] = "rod"
 
 
 def rudder_rod_grid(plant: PlantParams) -> tuple[np.ndarray, np.ndarray]:
@@ -386,10 +388,10 @@ class Scenario(Strict):
                 f"loop.computation_delay_s ({delay:g} s) must be a whole number of "
                 f"solver.step_s ({step:g} s)"
             )
-        if self.loop.position_feedback == "rudder" and self.reference.loop != "position":
+        if self.loop.position_feedback != "rod" and self.reference.loop != "position":
             raise ValueError(
-                "loop.position_feedback = 'rudder' needs a position loop (a position_mm or "
-                "rudder_deg reference)"
+                f"loop.position_feedback = {self.loop.position_feedback!r} needs a position loop "
+                "(a position_mm or rudder_deg reference)"
             )
 
     def variants(self) -> list[tuple[str, "Scenario"]]:
@@ -412,7 +414,7 @@ class Scenario(Strict):
     def setup(self) -> "Setup":
         """Compile this scenario into the arrays the engine runs (the first call loads the
         compiled core: checking a scenario does not)."""
-        from ..sim.engine import FEEDBACK_ROD, FEEDBACK_RUDDER
+        from ..sim.engine import FEEDBACK_MOTOR, FEEDBACK_ROD, FEEDBACK_RUDDER
         from ..sim.setup import Setup, plant_facts
 
         facts = plant_facts(self.plant)
@@ -441,7 +443,9 @@ class Scenario(Strict):
                 None if self.solver.record_signals is None else tuple(self.solver.record_signals)
             ),
             delay_substeps=round(self.loop.computation_delay_s / self.solver.step_s),
-            feedback=FEEDBACK_RUDDER if self.loop.position_feedback == "rudder" else FEEDBACK_ROD,
+            feedback={"rod": FEEDBACK_ROD, "rudder": FEEDBACK_RUDDER, "motor": FEEDBACK_MOTOR}[
+                self.loop.position_feedback
+            ],
             rudder_to_rod=lookup_table(*rudder_rod_grid(self.plant)),
         )
 

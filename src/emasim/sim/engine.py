@@ -25,6 +25,7 @@ from ..interface import (
     LIMIT_CURRENT,
     LIMIT_SPEED,
     LIMIT_VOLTAGE,
+    M_ANGLE,
     M_IQ,
     M_POSITION,
     M_RUDDER,
@@ -97,6 +98,7 @@ LOOP_POSITION_CURRENT = 2  # position controller commands the current loop direc
 
 FEEDBACK_ROD = 0  # the position loop closes on the rod's displacement sensor
 FEEDBACK_RUDDER = 1  # ... on the rudder encoder, through the rigid kinematics' rod position
+FEEDBACK_MOTOR = 2  # ... on the motor encoder, read as the nut's travel K theta_m (semi-closed)
 
 VOLTAGE_ROUND_OFF = 1e-9  # a voltage this close to Udc / sqrt(3) is at the inverter's limit
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
@@ -140,6 +142,8 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
     measure(x, p, sensors.table, sensors.state, meas, tick)
     if timing.feedback == FEEDBACK_RUDDER:
         meas[M_POSITION] = signal_value(sensors.rudder_to_rod, meas[M_RUDDER])
+    elif timing.feedback == FEEDBACK_MOTOR:
+        meas[M_POSITION] = p[A.P_K] * meas[M_ANGLE]
     flags = 0
     r, dr, ddr = signal_derivatives(signals.reference, t)
     position_ref = np.nan
