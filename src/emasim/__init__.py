@@ -26,7 +26,13 @@ def _version() -> str:
 
 def __getattr__(name: str):
     """``__version__``, read from the installed metadata when first asked for (importing
-    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario)."""
+    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario), and
+    ``linearize`` (:func:`emasim.linear.linearize`), loaded when first used (it loads
+    python-control and the compiled core)."""
     if name == "__version__":
         return _version()
+    if name == "linearize":
+        from .linear import linearize
+
+        return linearize
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
