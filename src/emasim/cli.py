@@ -493,6 +493,74 @@ def reproduce(
     )
 
 
+@app.command()
+def acceptance(
+    scenario: Annotated[str, typer.Argument(help="a shipped scenario name or a .toml path")],
+    label: Annotated[
+        list[str] | None,
+        typer.Option("--label", "-l", help="test only this controller set (repeatable)"),
+    ] = None,
+    setting: Annotated[
+        list[str] | None, typer.Option("--set", "-s", help="dotted.key=value override")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="datasheet folder (default: a fresh runs/acceptance/SCENARIO-TIME)"
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+) -> None:
+    """Run the actuator acceptance battery (frequency response, threshold, stiffness, rate and
+    load) for each controller set; write datasheet.json, report.html and the figures."""
+    from .output import check_folder
+    from .scenarios.loader import load_scenario
+
+    try:
+        sc = load_scenario(scenario, settings=setting or [])
+        from .experiments.acceptance import run_acceptance
+
+        if out is not None:
+            check_folder(out, force)  # refuse before spending the simulation time
+        _notice_compile()
+        start = time.perf_counter()
+        bar = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("{task.completed}/{task.total} runs"),
+            TimeRemainingColumn(),
+            console=err_console,
+            transient=True,
+        )
+        task = bar.add_task(f"acceptance battery of {sc.name}", total=None)
+        with bar:
+            result = run_acceptance(
+                sc, labels=label, progress=lambda d, n: bar.update(task, completed=d, total=n)
+            )
+        folder = result.save(out, force=force)
+    except EmasimError as err:
+        _fail(err)
+    _print_datasheet(result)
+    console.print(
+        f"{result.meta['runs']} runs, {result.meta['simulated_s']:.0f} s simulated in "
+        f"{time.perf_counter() - start:.1f} s; wrote {folder}/ (datasheet.json, report.html)",
+        highlight=False,
+    )
+
+
+def _print_datasheet(result) -> None:
+    from .analysis.datasheet import cell, unit_of
+
+    table = Table(title=f"{result.scenario.name}: acceptance datasheet")
+    table.add_column("figure")
+    table.add_column("unit")
+    for name in result.figures:
+        table.add_column(name, justify="right")
+    for key in next(iter(result.figures.values())):
+        table.add_row(key, unit_of(key), *(cell(f[key]) for f in result.figures.values()))
+    console.print(table)
+
+
 @app.command("export-fmu")
 def export_fmu(
     out: Annotated[

@@ -1,0 +1,148 @@
+"""The acceptance datasheet: datasheet.json, the figures (Bode, dynamic stiffness, hysteresis
+loop) and report.html, rendered from a Jinja2 template with every text escaped.
+
+Reads an :class:`emasim.experiments.acceptance.Acceptance`; writes into an existing folder
+(the caller's :func:`emasim.output.write_folder` makes it atomic).
+"""
+
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..output import json_text
+from . import frequency as fr
+from .plots import save_figure
+
+UNITS = (  # suffix of a figure's name -> its unit, longest first
+    ("_N_per_mm", "N/mm"),
+    ("_mm_s", "mm/s"),
+    ("_Hz", "Hz"),
+    ("_dB", "dB"),
+    ("_mm", "mm"),
+    ("_N", "N"),
+    ("_A", "A"),
+    ("_J", "J"),
+)
+FIGURES = (
+    (
+        "bode.png",
+        "Frequency response",
+        "Output over command, small signal (solid) and large signal (dashed), from stepped "
+        "sines; the amplitudes are in the table. Grey: -3 dB, -45 deg and -90 deg.",
+    ),
+    (
+        "stiffness.png",
+        "Dynamic stiffness",
+        "|F/x| of rod-force sines while the command holds mid stroke.",
+    ),
+    (
+        "hysteresis.png",
+        "Threshold and hysteresis",
+        "Output against command over the slow triangle; the loop's width is the hysteresis.",
+    ),
+)
+
+
+def unit_of(name: str) -> str:
+    return next((unit for suffix, unit in UNITS if name.endswith(suffix)), "")
+
+
+def cell(value) -> str:
+    """One table cell: 4 significant figures, yes/no, or n/a where the battery found none."""
+    if value is None:
+        return "n/a"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    return f"{value:.4g}"
+
+
+def plot_bode(curves: dict) -> Figure:
+    fig = Figure(figsize=(8, 6), layout="constrained")
+    gain, phase = fig.subplots(2, 1, sharex=True)
+    for k, (label, c) in enumerate(curves.items()):
+        color = f"C{k}"
+        for size, style in (("small", "-o"), ("large", "--s")):
+            f, h = c[size]
+            gain.semilogx(f, fr.gain_dB(h), style, color=color, ms=3, label=f"{label}, {size}")
+            phase.semilogx(f, fr.phase_deg(h), style, color=color, ms=3)
+    gain.axhline(-3.0, color="0.6", lw=0.8)
+    for level in (-45.0, -90.0):
+        phase.axhline(level, color="0.6", lw=0.8)
+    gain.set_ylabel("gain (dB)")
+    phase.set_ylabel("phase (deg)")
+    phase.set_xlabel("frequency (Hz)")
+    gain.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    return fig
+
+
+def plot_stiffness(curves: dict) -> Figure:
+    fig = Figure(figsize=(7, 4), layout="constrained")
+    ax = fig.subplots()
+    for label, c in curves.items():
+        ax.loglog(*c["stiffness"], "-o", ms=3, label=label)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("|F/x| (N/mm)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    return fig
+
+
+def plot_hysteresis(curves: dict) -> Figure:
+    fig = Figure(figsize=(7, 4), layout="constrained")
+    ax = fig.subplots()
+    for label, c in curves.items():
+        command, output = c["loop"]
+        ax.plot(
+            np.asarray(command) * 1e3, (np.asarray(output) - command) * 1e3, lw=0.8, label=label
+        )
+    ax.set_xlabel("command (mm)")
+    ax.set_ylabel("output - command (mm)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    return fig
+
+
+def write_datasheet(acceptance, folder: Path) -> None:
+    """datasheet.json, bode.png, stiffness.png, hysteresis.png and report.html in ``folder``."""
+    from jinja2 import Environment, select_autoescape
+
+    sheet = acceptance.datasheet()
+    (folder / "datasheet.json").write_text(json_text(sheet))
+    curves = acceptance.curves
+    for (name, _, _), plot in zip(
+        FIGURES, (plot_bode, plot_stiffness, plot_hysteresis), strict=True
+    ):
+        save_figure(plot(curves), folder / name)
+    labels = list(sheet["sets"])
+    rows = [
+        {
+            "name": key,
+            "unit": unit_of(key),
+            "cells": [cell(sheet["sets"][label].get(key)) for label in labels],
+        }
+        for key in sheet["definitions"]
+    ]
+    environment = Environment(autoescape=select_autoescape(default=True))
+    template = environment.from_string(
+        files("emasim.analysis").joinpath("datasheet.html.j2").read_text()
+    )
+    meta = sheet["meta"]
+    html = template.render(
+        title=f"Acceptance datasheet: {sheet['scenario']}",
+        scenario=sheet["scenario"],
+        version=meta["emasim_version"],
+        created=meta["created_utc"],
+        runs=meta["runs"],
+        simulated=f"{meta['simulated_s']:.0f}",
+        wall=f"{meta['simulation_wall_s']:.1f}",
+        output=sheet["output"],
+        labels=labels,
+        rows=rows,
+        figures=[{"file": f, "title": t, "caption": c} for f, t, c in FIGURES],
+        definitions=sheet["definitions"],
+        battery={
+            k: ", ".join(map(cell, v)) if isinstance(v, list | tuple) else cell(v)
+            for k, v in sheet["battery"].items()
+        },
+    )
+    (folder / "report.html").write_text(html)

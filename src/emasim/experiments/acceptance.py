@@ -1,0 +1,590 @@
+"""Actuator acceptance tests, the ARP1281 family: the datasheet of each controller set.
+
+The battery runs on a position scenario's plant and each of its controller sets. Every test is a
+run of its own, from rest at mid stroke, with the scenario's load signals removed (the plant's
+standing loads, a load motor's preload, stay) and its own command and load:
+
+* **Frequency response**, small and large signal: stepped sines of the position command,
+  amplitude a fraction of the full stroke (1 % and 10 %, peak), at log-spaced frequencies. Each
+  run settles for ``settle_s`` plus ``settle_cycles`` periods, then the fundamental of the
+  output over the command (:mod:`emasim.analysis.frequency`) is read over a whole number of
+  periods. Figures: the -3 dB bandwidth, the frequencies of -45 and -90 deg phase.
+* **Threshold and hysteresis**: a slow triangle of the command after a hold of ``settle_s``
+  at mid stroke. The threshold is the command
+  travel after each reversal before the output has moved ``detection_mm`` the new way, less
+  ``detection_mm`` (for a pure dead band of width w it is w, whatever the detection level);
+  the median over the reversals. The hysteresis width is the largest gap between the output's
+  falling and rising branches at equal command, over the middle 90 % of the command range
+  (for a play of width w it is w).
+* **Stiffness**: static, a rod-force step (a fraction of the theoretical stall force
+  kt I_max / K) while the command holds: force over the output's deflection, the peak one and
+  the one left at the end of the hold (with integral action none is left above the output's
+  own jitter: the static figure is then a lower bound, force over the jitter, and says so);
+  dynamic, |F / x|(f) from rod-force sines.
+* **Rate and load**: the no-load rate (a step of ``rate_step_fraction`` of the stroke, the
+  standing loads removed; the output's mean rate from 10 % to 90 % of the travel), the
+  rate at rated load (the same step against a constant rod force: kt I_cont / K with the
+  drive's ratings, else half the theoretical stall force), and the stall force: the opposing
+  rod force, ramped slowly, at which the output has been pushed back ``stall_deflection_mm``.
+  The RMS current sqrt(mean(id^2 + iq^2)) (A, the dq magnitude: the unit of the drive's
+  current limit) and the net electrical energy per cycle
+  integral 3/2 (ud id + uq iq) dt (J) come from the large-signal sine at ``cycle_frequency_Hz``.
+
+The output is the position the loop controls, noise-free, in rod millimetres: the rod for 'rod'
+and 'motor' feedback (with motor feedback the backlash and the compliance are outside the loop,
+and show), the rudder angle through the rigid kinematics for 'rudder' feedback. Rod forces are
+positive when they oppose extension. Runs go through :func:`emasim.experiments.batch.map_runs`
+(threads in this process by default: the compiled loop releases the GIL).
+"""
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from ..analysis import frequency as fr
+from ..errors import InputError
+from ..scenarios.schema import Scenario, rudder_rod_grid
+from ..sim.engine import EngineRun, simulate
+
+MM = 1e-3
+RPM_PER_RAD_S = 30.0 / math.pi
+RECORDED = (
+    "motor_speed_rad_s",
+    "position_ref_m",
+    "actuator_position_m",
+    "rudder_angle_rad",
+    "id_A",
+    "iq_A",
+    "ud_V",
+    "uq_V",
+    "rod_load_N",
+)
+DECADE_EIGHTHS = tuple(float(10 ** (k / 8)) for k in range(-4, 13))  # 0.32 .. 31.6 Hz
+DECADE_QUARTERS = DECADE_EIGHTHS[::2]
+
+
+@dataclass(frozen=True)
+class Battery:
+    """The battery's settings (amplitudes as fractions of the full stroke, forces of the
+    theoretical stall force kt I_max / K; times in s). The time the defaults take is measured in
+    benchmarks/bench_acceptance.py."""
+
+    small_amplitude: float = 0.01
+    large_amplitude: float = 0.10
+    frequencies_Hz: tuple[float, ...] = DECADE_EIGHTHS
+    settle_s: float = 1.0
+    settle_cycles: int = 2
+    measure_cycles: int = 2
+    measure_min_s: float = 0.5
+    triangle_amplitude: float = 0.002
+    triangle_period_s: float = 4.0
+    triangle_cycles: int = 2
+    detection_mm: float = 0.002
+    load_step: float = 0.2
+    load_hold_s: float = 2.0
+    dynamic_force: float = 0.05
+    stiffness_frequencies_Hz: tuple[float, ...] = DECADE_QUARTERS
+    rate_step_fraction: float = 0.2
+    stall_ramp_per_s: float = 1.0
+    stall_deflection_mm: float = 1.0
+    cycle_frequency_Hz: float = 1.0
+
+    def periods(self, frequency_Hz: float) -> tuple[float, float]:
+        """(settling time, measured window) of a stepped sine: whole periods for the window."""
+        period = 1.0 / frequency_Hz
+        window = period * max(self.measure_cycles, math.ceil(self.measure_min_s / period))
+        return self.settle_s + self.settle_cycles * period, window
+
+
+@dataclass(frozen=True)
+class Drive:
+    """What the battery derives from the plant: stroke (m), theoretical stall force
+    kt I_max / K (N), rated load (N), the drive's speed limit (rpm, and at the rod in m/s), and
+    how to read the controlled output (m)."""
+
+    stroke_m: float
+    stall_force_N: float
+    rated_load_N: float
+    max_speed_rpm: float  # the drive's speed-command limit
+    max_rate_m_s: float  # ... at the rod
+    rudder_grid: tuple[np.ndarray, np.ndarray] | None = field(repr=False)  # angle -> rod map
+
+    @classmethod
+    def of(cls, scenario: Scenario) -> "Drive":
+        plant = scenario.plant
+        kt, k = plant.torque_constant_Nm_per_A, plant.ratio_m_per_rad
+        stall = kt * plant.motor.max_current_A / k
+        rated = (
+            kt * plant.ratings.continuous_current_A / k if plant.ratings is not None else stall / 2
+        )
+        grid = rudder_rod_grid(plant) if scenario.loop.position_feedback == "rudder" else None
+        speed = plant.motor.max_speed_rpm
+        stroke = plant.drivetrain.stroke_mm * MM
+        return cls(stroke, stall, rated, speed, speed / RPM_PER_RAD_S * k, grid)
+
+    def output_m(self, result) -> np.ndarray:
+        if self.rudder_grid is None:
+            return result["actuator_position_m"]
+        return np.interp(result["rudder_angle_rad"], *self.rudder_grid)
+
+
+# --- the runs -----------------------------------------------------------------------------
+
+
+def battery_scenario(
+    base: Scenario,
+    duration_s: float,
+    position_mm: list[dict],
+    rod_force_N: list[dict] | None = None,
+    no_standing_load: bool = False,
+) -> Scenario:
+    """``base`` with this command and rod force, its load signals removed, recording only what
+    the battery reads; validated again (a command beyond the stroke is refused)."""
+    raw = base.model_dump(mode="json", exclude_none=True)
+    raw.update(duration_s=duration_s, compare=[], reference={"position_mm": position_mm})
+    raw["load"] = {"rod_force_N": rod_force_N or []}
+    raw["solver"]["record_signals"] = list(RECORDED)
+    if no_standing_load and raw["plant"].get("load_motor"):
+        raw["plant"]["load_motor"]["preload_Nm"] = 0.0
+    return Scenario.model_validate(raw)
+
+
+def sine_job(base, drive, battery, frequency_Hz, amplitude_m, force_N=0.0):
+    """One stepped sine: of the command (amplitude_m) or of a rod force (force_N)."""
+    settle, window = battery.periods(frequency_Hz)
+    if force_N:
+        command = [{"type": "constant", "value": 0.0}]
+        force = [{"type": "sine", "amplitude": force_N, "frequency_Hz": frequency_Hz}]
+    else:
+        command = [{"type": "sine", "amplitude": amplitude_m / MM, "frequency_Hz": frequency_Hz}]
+        force = None
+    return ("sine", battery_scenario(base, settle + window, command, force), drive, battery)
+
+
+def measure_sine(scenario, drive, battery) -> dict:
+    """The fundamental of the output over the command (or over the rod force), and the
+    drive's RMS current and electrical energy per period over the measured window."""
+    result = simulate(scenario.setup())
+    term = (scenario.load.rod_force_N or scenario.reference.position_mm)[0]
+    f = term.frequency_Hz
+    settle, _ = battery.periods(f)
+    t = result.t
+    keep = t >= settle - 1e-9
+    excitation = result["rod_load_N"] if scenario.load.rod_force_N else result["position_ref_m"]
+    output = drive.output_m(result)
+    h = fr.response(t[keep], excitation[keep], output[keep], f)
+    i_d, i_q = result["id_A"][keep], result["iq_A"][keep]
+    power = 1.5 * (result["ud_V"][keep] * i_d + result["uq_V"][keep] * i_q)
+    span = t[keep][-1] - t[keep][0]
+    return {
+        "frequency_Hz": f,
+        "response": h,
+        "output_amplitude_m": abs(fr.phasor(t[keep], output[keep], f)),
+        "rms_current_A": float(np.sqrt(np.mean(i_d**2 + i_q**2))),
+        "energy_per_cycle_J": float(np.trapezoid(power, t[keep]) / (span * f)),
+    }
+
+
+def triangle_job(base, drive, battery):
+    """Hold mid stroke for settle_s, then a slow triangle of the command about it, upwards."""
+    a = battery.triangle_amplitude * drive.stroke_m / MM
+    quarter, hold = battery.triangle_period_s / 4, battery.settle_s
+    n = 4 * battery.triangle_cycles
+    times = [0.0, hold, *(hold + quarter * (2 * k + 1) for k in range(n // 2)), hold + quarter * n]
+    values = [0.0, 0.0, *(a if k % 2 == 0 else -a for k in range(n // 2)), 0.0]
+    command = [{"type": "table", "time_s": times, "values": values}]
+    return ("triangle", battery_scenario(base, times[-1], command), drive, battery)
+
+
+def measure_triangle(scenario, drive, battery) -> dict:
+    """Threshold and hysteresis width (m) of the triangle run (module docstring)."""
+    result = simulate(scenario.setup())
+    t, command, output = result.t, result["position_ref_m"], drive.output_m(result)
+    term = scenario.reference.position_mm[0]
+    reversals = list(term.time_s[2:-1])
+    delta = battery.detection_mm * MM
+    thresholds = []
+    for k, t_rev in enumerate(reversals):
+        sign = -1.0 if k % 2 == 0 else 1.0  # the command's new direction
+        after = t >= t_rev
+        if k + 1 < len(reversals):
+            after &= t < reversals[k + 1]
+        y, c = output[after], command[after]
+        extreme = np.maximum.accumulate(-sign * y) * -sign  # the output's turn-around
+        moved = np.flatnonzero(sign * (y - extreme) >= delta)
+        if moved.size:
+            thresholds.append(abs(c[moved[0]] - c[0]) - delta)
+    a = battery.triangle_amplitude * drive.stroke_m
+    grid = np.linspace(-0.9 * a, 0.9 * a, 361)
+    rising, falling = _branches(t, command, output, reversals)
+    width = float(np.max(np.interp(grid, *falling) - np.interp(grid, *rising)))
+    shown = t >= reversals[0]
+    return {
+        "threshold_m": float(np.median(thresholds)) if thresholds else None,
+        "hysteresis_m": width,
+        "loop": (command[shown], output[shown]),
+    }
+
+
+def _branches(t, command, output, reversals):
+    """(command, output) of the last whole rising and falling sweeps (reversal to reversal),
+    command ascending."""
+    sweeps = []
+    for k in range(1, len(reversals)):
+        inside = (t >= reversals[k - 1]) & (t < reversals[k])
+        sweeps.append((command[inside], output[inside], k % 2 == 0))
+    rising = [(c, y) for c, y, up in sweeps if up][-1]
+    falling = [(c[::-1], y[::-1]) for c, y, up in sweeps if not up][-1]
+    return rising, falling
+
+
+def load_step_job(base, drive, battery):
+    """Hold mid stroke, a rod-force step at settle_s, hold load_hold_s."""
+    force = battery.load_step * drive.stall_force_N
+    step = [{"type": "step", "time_s": battery.settle_s, "final": force}]
+    command = [{"type": "constant", "value": 0.0}]
+    duration = battery.settle_s + battery.load_hold_s
+    return ("load_step", battery_scenario(base, duration, command, step), drive, battery)
+
+
+def measure_load_step(scenario, drive, battery) -> dict:
+    """Force over the output's peak deflection, and over the deflection left at the end (the
+    mean of the last fifth of the hold, against the jitter before the step)."""
+    result = simulate(scenario.setup())
+    t, y = result.t, drive.output_m(result)
+    step_time = scenario.load.rod_force_N[0].time_s
+    force = scenario.load.rod_force_N[0].final
+    before = (t > step_time - 0.2 * battery.load_hold_s) & (t < step_time)
+    rest = float(np.mean(y[before]))
+    jitter = float(np.ptp(y[before]))
+    after = t >= step_time
+    deflection = y[after] - rest
+    peak = float(np.max(np.abs(deflection)))
+    end = float(abs(np.mean(deflection[t[after] >= t[-1] - 0.2 * battery.load_hold_s])))
+    resolved = end > jitter
+    return {
+        "load_step_N": force,
+        "peak_deflection_m": peak,
+        "steady_deflection_m": end,
+        "peak_stiffness_N_per_m": force / peak,
+        "static_stiffness_N_per_m": force / max(end, jitter, 1e-12),
+        "static_stiffness_lower_bound": not resolved,
+    }
+
+
+def rate_job(base, drive, battery, load_N):
+    """A step of rate_step_fraction of the stroke at settle_s / 2, against a constant rod force
+    (or unloaded: load_N = 0, the standing loads removed)."""
+    start = 0.5 * battery.settle_s
+    travel = battery.rate_step_fraction * drive.stroke_m / MM
+    command = [{"type": "step", "time_s": start, "final": travel}]
+    force = [{"type": "constant", "value": load_N}] if load_N else None
+    duration = start + 3.0 * travel * MM / drive.max_rate_m_s + battery.settle_s
+    scenario = battery_scenario(base, duration, command, force, no_standing_load=not load_N)
+    return ("rate", scenario, drive, battery)
+
+
+def measure_rate(scenario, drive, battery) -> dict:
+    """The output's mean rate (m/s) from 10 % to 90 % of the step's travel, the slope of the
+    stroke's constant-rate part (first crossings, interpolated), and the motor's peak speed
+    (rad/s: the drive limits the speed command, the speed loop may overshoot it)."""
+    result = simulate(scenario.setup())
+    t, y = result.t, drive.output_m(result)
+    travel = scenario.reference.position_mm[0].final * MM
+    t10, t90 = (_first_time(t, y, level * travel) for level in (0.1, 0.9))
+    return {
+        "rate_m_s": 0.8 * travel / (t90 - t10) if t90 is not None else None,
+        "peak_speed_rad_s": float(np.max(np.abs(result["motor_speed_rad_s"]))),
+    }
+
+
+def _first_time(t, y, level):
+    """The first time y reaches level (rising), interpolated; None if it never does."""
+    above = np.flatnonzero(y >= level)
+    if above.size == 0:
+        return None
+    k = int(above[0])
+    if k == 0:
+        return float(t[0])
+    return float(t[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]))
+
+
+def stall_job(base, drive, battery):
+    """Hold mid stroke; from settle_s an opposing rod force ramps up at stall_ramp_per_s of the
+    theoretical stall force per second, to 1.5 times it."""
+    slope = battery.stall_ramp_per_s * drive.stall_force_N
+    start = battery.settle_s
+    end = start + 1.5 / battery.stall_ramp_per_s
+    ramp = [{"type": "ramp", "slope_per_s": slope, "start_s": start, "end_s": end}]
+    command = [{"type": "constant", "value": 0.0}]
+    return ("stall", battery_scenario(base, end, command, ramp), drive, battery)
+
+
+STALL_CHUNK_S = 0.01
+
+
+def measure_stall(scenario, drive, battery) -> dict:
+    """The rod force at which the output has been pushed back stall_deflection_mm (N), the run
+    stopped there (past the stall the load drives the motor away); None if it held."""
+    setup = scenario.setup()
+    run = EngineRun(setup)
+    chunk = max(1, round(STALL_CHUNK_S / setup.sample_period_s))
+    limit = battery.stall_deflection_mm * MM
+    start = scenario.load.rod_force_N[0].start_s
+    while run.tick < setup.n_ticks:
+        run.advance(min(setup.n_ticks, run.tick + chunk))
+        rows = run.tick // setup.record_every
+        result = run.result()
+        t, y = result.t[:rows], drive.output_m(result)[:rows]
+        rest = np.mean(y[(t > 0.8 * start) & (t < start)]) if t[-1] > start else None
+        if rest is None:
+            continue
+        pushed = np.flatnonzero(rest - y >= limit)
+        if pushed.size:
+            return {"stall_force_N": float(result["rod_load_N"][pushed[0]])}
+    return {"stall_force_N": None}
+
+
+MEASURES = {
+    "sine": measure_sine,
+    "triangle": measure_triangle,
+    "load_step": measure_load_step,
+    "rate": measure_rate,
+    "stall": measure_stall,
+}
+
+
+def _measure(kind, scenario, drive, battery):
+    return MEASURES[kind](scenario, drive, battery)
+
+
+# --- the battery ----------------------------------------------------------------------------
+
+DEFINITIONS = {
+    "small_amplitude_mm": "the small-signal command's peak amplitude (a fraction of the stroke)",
+    "large_amplitude_mm": "the large-signal command's peak amplitude (a fraction of the stroke)",
+    "bandwidth_small_Hz": "first frequency where |x/x_cmd| falls to -3 dB, small signal",
+    "bandwidth_large_Hz": "first frequency where |x/x_cmd| falls to -3 dB, large signal",
+    "phase_45_small_Hz": "first frequency of -45 deg phase of x/x_cmd, small signal",
+    "phase_90_small_Hz": "first frequency of -90 deg phase of x/x_cmd, small signal",
+    "phase_45_large_Hz": "first frequency of -45 deg phase of x/x_cmd, large signal",
+    "phase_90_large_Hz": "first frequency of -90 deg phase of x/x_cmd, large signal",
+    "peak_gain_small_dB": "largest |x/x_cmd| over the band, small signal (resonance peak)",
+    "peak_gain_large_dB": "largest |x/x_cmd| over the band, large signal",
+    "threshold_mm": "command travel after a reversal of a slow triangle before the output moves "
+    "(less the detection level), median over the reversals",
+    "hysteresis_mm": "largest gap between the output's falling and rising branches at equal "
+    "command, over the middle 90 % of the slow triangle",
+    "static_stiffness_N_per_mm": "rod-force step over the deflection left at the end of the hold; "
+    "a lower bound (force over the output's jitter) where integral action leaves none",
+    "static_stiffness_lower_bound": "true when static_stiffness_N_per_mm is that lower bound",
+    "load_step_stiffness_N_per_mm": "rod-force step over the output's peak deflection",
+    "dynamic_stiffness_min_N_per_mm": "least |F/x| over the band of rod-force sines",
+    "dynamic_stiffness_min_Hz": "where that least dynamic stiffness occurs",
+    "no_load_rate_mm_s": "mean output rate from 10 % to 90 % of a step, standing loads removed",
+    "no_load_peak_speed_rpm": "the motor's peak speed in that step (the drive limits the speed "
+    "command to max_speed_rpm; the speed loop can overshoot it)",
+    "max_speed_rpm": "the drive's speed-command limit, motor.max_speed_rpm",
+    "rated_load_N": "the rated load: kt I_continuous / K with the drive's ratings, else half "
+    "the theoretical stall force",
+    "rate_at_rated_load_mm_s": "the same rate against a constant rod force of the rated load",
+    "stall_force_N": "opposing rod force, ramped slowly, at which the output has been pushed "
+    "back by the stall deflection",
+    "theoretical_stall_force_N": "kt I_max / K, the drive's peak current through the screw",
+    "rms_current_A": "RMS of the dq current magnitude over the large-signal sine at the cycle "
+    "frequency",
+    "energy_per_cycle_J": "net electrical energy 3/2 (ud id + uq iq) over one period of that sine",
+}
+
+
+@dataclass
+class Acceptance:
+    """The battery's outcome: ``figures`` label -> the datasheet's figures (DEFINITIONS, in
+    the units their names carry), ``curves`` label -> the measured curves (Bode points,
+    dynamic stiffness, the hysteresis loop), and what ran."""
+
+    scenario: Scenario
+    battery: Battery
+    figures: dict[str, dict]
+    curves: dict[str, dict]
+    meta: dict
+
+    def datasheet(self) -> dict:
+        """What DIR/datasheet.json holds: the sets side by side, the definitions, the battery."""
+        return {
+            "scenario": self.scenario.name,
+            "sets": self.figures,
+            "definitions": DEFINITIONS,
+            "battery": asdict(self.battery),
+            "output": self.meta["output"],
+            "meta": {k: v for k, v in self.meta.items() if k != "output"},
+        }
+
+    def save(self, folder=None, force: bool = False):
+        """Write datasheet.json, report.html and the figures into ``folder`` (default a fresh
+        runs/acceptance/SCENARIO-TIME), atomically and never over anything emasim did not
+        write; return where."""
+        from ..analysis.datasheet import write_datasheet
+        from ..output import RUNS_ROOT, fresh_folder, write_folder
+
+        unique = folder is None
+        if unique:
+            folder = fresh_folder(RUNS_ROOT / "acceptance", self.scenario.name)
+        return write_folder(
+            folder,
+            lambda tmp: write_datasheet(self, tmp),
+            force=force,
+            unique=unique,
+            kind="acceptance",
+        )
+
+
+def output_description(scenario: Scenario) -> str:
+    feedback = scenario.loop.position_feedback
+    if feedback == "rudder":
+        return "the rudder angle through the rigid kinematics, in rod mm (rudder feedback)"
+    return f"the rod position ({feedback} feedback)"
+
+
+def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, tuple]]:
+    """(tag, job) of every run of one controller set."""
+    drive = Drive.of(variant)
+    small, large = (
+        battery.small_amplitude * drive.stroke_m,
+        battery.large_amplitude * drive.stroke_m,
+    )
+    force = battery.dynamic_force * drive.stall_force_N
+    jobs = [
+        (("small", f), sine_job(variant, drive, battery, f, small)) for f in battery.frequencies_Hz
+    ]
+    jobs += [
+        (("large", f), sine_job(variant, drive, battery, f, large)) for f in battery.frequencies_Hz
+    ]
+    jobs += [
+        (("stiffness", f), sine_job(variant, drive, battery, f, 0.0, force_N=force))
+        for f in battery.stiffness_frequencies_Hz
+    ]
+    if battery.cycle_frequency_Hz not in battery.frequencies_Hz:
+        jobs.append(
+            (
+                ("cycle", battery.cycle_frequency_Hz),
+                sine_job(variant, drive, battery, battery.cycle_frequency_Hz, large),
+            )
+        )
+    jobs += [
+        (("triangle",), triangle_job(variant, drive, battery)),
+        (("load_step",), load_step_job(variant, drive, battery)),
+        (("no_load",), rate_job(variant, drive, battery, 0.0)),
+        (("rated",), rate_job(variant, drive, battery, drive.rated_load_N)),
+        (("stall",), stall_job(variant, drive, battery)),
+    ]
+    return jobs
+
+
+def run_acceptance(
+    scenario: Scenario,
+    labels: list[str] | None = None,
+    battery: Battery | None = None,
+    client=None,
+    progress=None,
+) -> Acceptance:
+    """Run the battery for each controller set of ``scenario`` (or those named in ``labels``)
+    in parallel; ``progress(done, total)`` after each run."""
+    from .batch import dask_client, map_runs
+
+    battery = battery or Battery()
+    if scenario.reference.loop != "position":
+        raise InputError(
+            f"acceptance: {scenario.name} is a speed-loop scenario; the battery needs a position "
+            "loop (a position_mm or rudder_deg reference)"
+        )
+    variants = dict(scenario.variants())
+    chosen = list(labels or variants)
+    unknown = [label for label in chosen if label not in variants]
+    if unknown:
+        raise InputError(
+            f"--label: {unknown[0]!r} is no controller set of {scenario.name}; "
+            f"choose from: {', '.join(variants)}"
+        )
+    tagged = [
+        (label, tag, job) for label in chosen for tag, job in plan_battery(variants[label], battery)
+    ]
+    done = [0]
+
+    def on_done(_, __):
+        done[0] += 1
+        if progress is not None:
+            progress(done[0], len(tagged))
+
+    start = time.perf_counter()
+    jobs = [job for _, _, job in tagged]
+    if client is None:
+        with dask_client(processes=False) as local:
+            values = map_runs(_measure, jobs, local, on_done)
+    else:
+        values = map_runs(_measure, jobs, client, on_done)
+    wall = time.perf_counter() - start
+    figures, curves = {}, {}
+    for label in chosen:
+        measured = {tag: v for (lb, tag, _), v in zip(tagged, values, strict=True) if lb == label}
+        figures[label], curves[label] = summarize(measured, Drive.of(variants[label]), battery)
+    from .runs import meta_of
+
+    meta = meta_of(scenario, wall)
+    meta.update(
+        runs=len(tagged),
+        simulated_s=sum(job[1].duration_s for job in jobs),
+        output=output_description(scenario),
+    )
+    return Acceptance(scenario, battery, figures, curves, meta)
+
+
+def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dict]:
+    """The datasheet's figures (DEFINITIONS) and the curves of one set's measurements."""
+    curves = {}
+    figures = {
+        "small_amplitude_mm": battery.small_amplitude * drive.stroke_m / MM,
+        "large_amplitude_mm": battery.large_amplitude * drive.stroke_m / MM,
+    }
+    for size in ("small", "large"):
+        f = np.array(battery.frequencies_Hz)
+        h = np.array([measured[(size, x)]["response"] for x in battery.frequencies_Hz])
+        curves[size] = (f, h)
+        bode = fr.bode_figures(f, h)
+        figures[f"bandwidth_{size}_Hz"] = bode["bandwidth_Hz"]
+        figures[f"phase_45_{size}_Hz"] = bode["phase_45_Hz"]
+        figures[f"phase_90_{size}_Hz"] = bode["phase_90_Hz"]
+        figures[f"peak_gain_{size}_dB"] = bode["peak_gain_dB"]
+    triangle = measured[("triangle",)]
+    curves["loop"] = triangle["loop"]
+    threshold = triangle["threshold_m"]
+    figures["threshold_mm"] = threshold / MM if threshold is not None else None
+    figures["hysteresis_mm"] = triangle["hysteresis_m"] / MM
+    step = measured[("load_step",)]
+    figures["static_stiffness_N_per_mm"] = step["static_stiffness_N_per_m"] * MM
+    figures["static_stiffness_lower_bound"] = step["static_stiffness_lower_bound"]
+    figures["load_step_stiffness_N_per_mm"] = step["peak_stiffness_N_per_m"] * MM
+    f = np.array(battery.stiffness_frequencies_Hz)
+    stiffness = np.array([1.0 / abs(measured[("stiffness", x)]["response"]) for x in f]) * MM
+    curves["stiffness"] = (f, stiffness)
+    weakest = int(np.argmin(stiffness))
+    figures["dynamic_stiffness_min_N_per_mm"] = float(stiffness[weakest])
+    figures["dynamic_stiffness_min_Hz"] = float(f[weakest])
+    for key, tag in (("no_load_rate_mm_s", "no_load"), ("rate_at_rated_load_mm_s", "rated")):
+        rate = measured[(tag,)]["rate_m_s"]
+        figures[key] = rate / MM if rate is not None else None
+        if tag == "no_load":
+            figures["no_load_peak_speed_rpm"] = measured[(tag,)]["peak_speed_rad_s"] * RPM_PER_RAD_S
+            figures["max_speed_rpm"] = drive.max_speed_rpm
+    figures["rated_load_N"] = drive.rated_load_N
+    figures["stall_force_N"] = measured[("stall",)]["stall_force_N"]
+    figures["theoretical_stall_force_N"] = drive.stall_force_N
+    cycle = (
+        measured.get(("cycle", battery.cycle_frequency_Hz))
+        or measured[("large", battery.cycle_frequency_Hz)]
+    )
+    figures["rms_current_A"] = cycle["rms_current_A"]
+    figures["energy_per_cycle_J"] = cycle["energy_per_cycle_J"]
+    return figures, curves

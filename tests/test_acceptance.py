@@ -1,0 +1,205 @@
+"""The acceptance battery (emasim.experiments.acceptance) and its command.
+
+* Threshold and hysteresis on a semi-closed loop (position fed back from the motor encoder),
+  proportional loops and Coulomb friction: both equal the backlash width plus the motion lost
+  to friction, each computed independently from the parameters. In steady sliding at the
+  triangle's rate r the motor side lags the command by e, where the static loop stiffness
+  kt Kps Kpp / K (N m per rod metre) balances the friction torque Tc tanh(w/ws) + (s2 + B) w
+  and the rod's viscous force reflected through the screw, K c_L r / eta (w = r / K; the
+  velocity feed-forward cancels the rest). A reversal takes 2e to turn the friction over and
+  the gap w_b to cross: threshold = hysteresis = w_b + 2e.
+* With backlash only, inside the loop (rod feedback, a light and well-damped rod: a play of
+  the nut's travel), the small-amplitude closed loop matches the describing-function
+  prediction: the linear loop of emasim.linearize, L = T0 / (1 - T0) (a PI position loop with
+  no feed-forward, so T0 = L / (1 + L)), around python-control's backlash nonlinearity N(A),
+  solved for the nut's amplitude A = |L R / (1 + N L)| by fixed-point iteration, gives
+  H = N L / (1 + N L). Tolerance (measured): with the nut's amplitude three or more times the
+  gap, 0.15 dB and 1 deg (found 0.10 dB, 0.45 deg); near twice the gap the harmonics the
+  describing function neglects grow, 0.4 dB and 1.5 deg (found 0.30 dB, 1.2 deg). The
+  backlash moves the response by several times these tolerances.
+* The command writes datasheet.json with every figure the issue names, and the figures obey
+  the drive's physics: a rate-limited output cannot pass the large-signal band beyond what
+  its rate allows, and a rated load cannot make it faster.
+* Bad input is one line and exit code 2.
+"""
+
+import json
+import math
+
+import control
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from emasim import linearize
+from emasim.analysis.frequency import gain_dB
+from emasim.cli import app
+from emasim.experiments import acceptance as ac
+from emasim.scenarios.loader import load_scenario
+
+KPP, KPS = 20.0, 0.5  # position loop 1/s, speed loop A s/rad: proportional only
+GAP_MM = 0.1
+SEMI_CLOSED = [
+    "loop.position_feedback='motor'",
+    "sensors='ideal'",
+    "plant.friction.model='coulomb'",
+    f"plant.backlash.width_mm={GAP_MM}",
+    # a light, well-damped rod follows the nut as a play: it stops within M / c_L = 0.1 ms
+    "plant.load.rod_mass_kg=0.1",
+    "plant.load.rudder_inertia_kgm2=0",
+    "plant.load.viscous_Ns_per_m=1000",
+    f"controllers.position.kp_per_s={KPP}",
+    "controllers.position.ki_per_s2=0",
+    f"controllers.speed.kp_A_s_per_rad={KPS}",
+    "controllers.speed.ki_A_per_rad=0",
+]
+
+
+def test_threshold_and_hysteresis_are_backlash_plus_friction_lost_motion():
+    scenario = load_scenario(
+        "position-step", controllers=["position=pi", "speed=pi"], settings=SEMI_CLOSED
+    )
+    battery = ac.Battery()
+    drive = ac.Drive.of(scenario)
+    measured = ac.measure_triangle(*ac.triangle_job(scenario, drive, battery)[1:])
+
+    p = scenario.plant
+    k, kt = p.ratio_m_per_rad, p.torque_constant_Nm_per_A
+    eta = p.drivetrain.gear_efficiency * p.drivetrain.screw_efficiency
+    rate = 4 * battery.triangle_amplitude * drive.stroke_m / battery.triangle_period_s
+    w = rate / k
+    f = p.friction
+    torque = (
+        f.coulomb_Nm * math.tanh(w / f.smoothing_speed_rad_s)
+        + (f.viscous_Nms_per_rad + p.motor.viscous_Nms_per_rad) * w
+        + k * p.load.viscous_Ns_per_m * rate / eta
+    )
+    lag = torque * k / (kt * KPS * KPP)
+    expected = GAP_MM * 1e-3 + 2 * lag
+    assert 2 * lag > 0.5 * GAP_MM * 1e-3  # the friction's share is not negligible
+    assert measured["threshold_m"] == pytest.approx(expected, rel=0.02)
+    assert measured["hysteresis_m"] == pytest.approx(expected, rel=0.02)
+
+
+PLAY = [
+    "sensors='ideal'",
+    "plant.friction.model='none'",
+    "plant.drivetrain.screw_efficiency=1",
+    "plant.load.rod_mass_kg=0.1",
+    "plant.load.rudder_inertia_kgm2=0",
+    "plant.load.viscous_Ns_per_m=1000",
+    "controllers.position.velocity_feedforward=false",
+    "controllers.position.bandwidth_Hz=4",
+]
+
+
+def play_loop(gap_mm: float):
+    return load_scenario(
+        "position-step",
+        controllers=["position=pi", "speed=pi"],
+        settings=[*PLAY, f"plant.backlash.width_mm={gap_mm}"],
+    )
+
+
+def describing_function_prediction(t0: complex, amplitude_m: float, gap_m: float) -> complex:
+    backlash = control.friction_backlash_nonlinearity(gap_m)
+    loop = t0 / (1 - t0)
+    nut = amplitude_m
+    for _ in range(200):
+        nut = abs(loop * amplitude_m / (1 + control.describing_function(backlash, nut) * loop))
+    n = control.describing_function(backlash, nut)
+    return n * loop / (1 + n * loop)
+
+
+@pytest.mark.parametrize(
+    ("amplitude_mm", "frequency_Hz", "tol_dB", "tol_deg"),
+    [(0.3, 4.0, 0.15, 1.0), (0.3, 8.0, 0.15, 1.0), (0.15, 4.0, 0.4, 1.5)],
+)
+def test_backlash_in_the_loop_matches_the_describing_function(
+    amplitude_mm, frequency_Hz, tol_dB, tol_deg
+):
+    gap_mm = 0.1
+    scenario = play_loop(gap_mm)
+    battery = ac.Battery()
+    job = ac.sine_job(scenario, ac.Drive.of(scenario), battery, frequency_Hz, amplitude_mm * 1e-3)
+    simulated = ac.measure_sine(*job[1:])["response"]
+    w = 2 * math.pi * frequency_Hz
+    t0 = complex(control.frequency_response(linearize(play_loop(0.0)), [w]).complex.squeeze())
+    predicted = describing_function_prediction(t0, amplitude_mm * 1e-3, gap_mm * 1e-3)
+    assert abs(gain_dB(simulated) - gain_dB(predicted)) <= tol_dB
+    assert abs(np.degrees(np.angle(simulated / predicted))) <= tol_deg
+    moved = abs(gain_dB(predicted) - gain_dB(t0)), abs(np.degrees(np.angle(predicted / t0)))
+    assert moved[0] > 3 * tol_dB or moved[1] > 3 * tol_deg
+
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def datasheet(tmp_path_factory):
+    out = tmp_path_factory.mktemp("acceptance") / "sheet"
+    result = runner.invoke(app, ["acceptance", "position-step", "--label", "PI", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return out, json.loads((out / "datasheet.json").read_text()), result.output
+
+
+REQUIRED = (
+    "bandwidth_small_Hz",
+    "bandwidth_large_Hz",
+    "phase_45_small_Hz",
+    "phase_90_small_Hz",
+    "threshold_mm",
+    "hysteresis_mm",
+    "static_stiffness_N_per_mm",
+    "no_load_rate_mm_s",
+    "stall_force_N",
+)
+
+
+def test_the_datasheet_holds_every_figure_with_its_definition(datasheet):
+    out, sheet, output = datasheet
+    figures = sheet["sets"]["PI"]
+    for key in REQUIRED:
+        assert isinstance(figures[key], float), key
+        assert key in sheet["definitions"]
+    for name in ("report.html", "bode.png", "stiffness.png", "hysteresis.png"):
+        assert (out / name).stat().st_size > 0
+    html = (out / "report.html").read_text()
+    assert "threshold_mm" in html and '<img src="bode.png"' in html
+    assert "bandwidth_small_Hz" in output
+
+
+def test_the_figures_obey_the_drive(datasheet):
+    _, sheet, _ = datasheet
+    figures = sheet["sets"]["PI"]
+    scenario = load_scenario("position-step")
+    drive = ac.Drive.of(scenario)
+    # no faster than the motor's peak speed allows; the datasheet shows that peak beside the
+    # drive's speed limit (this PI set's speed loop overshoots it by about 13 %)
+    peak_rate = figures["no_load_peak_speed_rpm"] / figures["max_speed_rpm"] * drive.max_rate_m_s
+    assert figures["no_load_rate_mm_s"] <= 1e3 * peak_rate
+    assert figures["rate_at_rated_load_mm_s"] <= figures["no_load_rate_mm_s"]
+    # an output that moves at most v has a fundamental of at most (8 / pi^2) v / (4 f) (the
+    # triangle wave of slope v); at the -3 dB bandwidth it is 10^(-3/20) of the amplitude
+    amplitude = figures["large_amplitude_mm"]
+    bound = (8 / math.pi**2) * figures["no_load_rate_mm_s"] / (4 * 10 ** (-3 / 20) * amplitude)
+    assert figures["bandwidth_large_Hz"] <= bound
+    assert figures["bandwidth_large_Hz"] < figures["bandwidth_small_Hz"]
+    # the drive cannot hold more than its peak current gives through a reversible screw
+    eta = scenario.plant.drivetrain.gear_efficiency * scenario.plant.drivetrain.screw_efficiency
+    assert figures["stall_force_N"] <= 1.1 * drive.stall_force_N / eta
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["acceptance", "speed-step"], "speed-loop"),
+        (["acceptance", "position-step", "--label", "nope"], "--label"),
+    ],
+)
+def test_bad_input_is_one_line(args, needle, tmp_path):
+    result = runner.invoke(app, [*args, "--out", str(tmp_path / "x")])
+    assert result.exit_code == 2
+    assert needle in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "x").exists()
