@@ -21,7 +21,8 @@ throughput on one and on two worker processes (``bench_study.study_scaling``); b
 same runs' compiled loop alone (EngineRun.advance, the GIL released) on one and on two Python
 threads: the scaling this machine's two cores allow. Monte Carlo: the wall time of the 200-run
 bench-step robustness study of each controller set (``bench_study.monte_carlo_seconds``).
-FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``.
+FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``. Acceptance: the wall time
+of the whole battery on bench-step's two controller sets (``bench_acceptance.battery_figures``).
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
 count and the Python, numpy and numba versions) and rewrites the README's speed table from it
@@ -46,6 +47,7 @@ import threading
 import time
 from pathlib import Path
 
+import bench_acceptance
 import bench_study
 import numba
 import numpy as np
@@ -300,6 +302,7 @@ def full_results() -> dict:
     )
     results["monte_carlo"] = bench_study.monte_carlo_seconds(bench_study.MC_RUNS)
     results["fmu"] = bench_fmu.fmu_figures(5, 2000)
+    results["acceptance"] = bench_acceptance.battery_figures()
     return results
 
 
@@ -353,6 +356,8 @@ def report(results: dict) -> None:
             f"(ratio {run['ratio']:.2f})"
         )
     bench_study.report(results["batch"], results.get("monte_carlo"))
+    if "acceptance" in results:
+        bench_acceptance.report(results["acceptance"])
     print(
         f"compiled loop alone, 1 against 2 threads: speed-up {results['batch']['core_speedup']:.2f}"
     )

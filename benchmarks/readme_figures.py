@@ -146,6 +146,18 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
                 f"speed-up {batch['core_speedup']:.2f}",
             )
         )
+    battery = results.get("acceptance")
+    if battery is not None:
+        rows.append(
+            (
+                f"the acceptance battery of `{battery['scenario']}`'s "
+                f"{len(battery['labels'])} controller sets (`emasim acceptance`: "
+                f"{battery['runs']} runs, {battery['simulated_s']:.0f} s simulated)",
+                f"median of {battery['repeats']}, threads in one process, warm cache; "
+                f"measured on {battery['date']}",
+                seconds(battery["wall_s"]),
+            )
+        )
     mc = results.get("monte_carlo")
     if mc is not None:
         rows.append(

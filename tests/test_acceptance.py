@@ -20,15 +20,19 @@
 * The command writes datasheet.json with every figure the issue names, and the figures obey
   the drive's physics: a rate-limited output cannot pass the large-signal band beyond what
   its rate allows, and a rated load cannot make it faster.
+* The README's datasheet is docs/datasheet.json rendered (docs/readme_datasheet.py), and that
+  sheet holds bench-step's two controller sets.
 * Bad input is one line and exit code 2.
 """
 
 import json
 import math
+from pathlib import Path
 
 import control
 import numpy as np
 import pytest
+from helpers import module_at
 from typer.testing import CliRunner
 
 from emasim import linearize
@@ -132,6 +136,7 @@ def test_backlash_in_the_loop_matches_the_describing_function(
     assert moved[0] > 3 * tol_dB or moved[1] > 3 * tol_deg
 
 
+ROOT = Path(__file__).parents[1]
 runner = CliRunner()
 
 
@@ -203,3 +208,13 @@ def test_bad_input_is_one_line(args, needle, tmp_path):
     assert needle in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "x").exists()
+
+
+def test_the_readme_datasheet_is_the_stored_sheet_rendered():
+    """Regenerate with ``emasim acceptance bench-step --out DIR`` and
+    ``python docs/readme_datasheet.py DIR``."""
+    module = module_at("docs/readme_datasheet.py")
+    sheet = json.loads((ROOT / "docs" / "datasheet.json").read_text())
+    assert module.block_of((ROOT / "README.md").read_text()) == module.render(sheet)
+    assert sheet["scenario"] == "bench-step"
+    assert list(sheet["sets"]) == [v.label for v in load_scenario("bench-step").compare]

@@ -18,6 +18,7 @@ from .plots import save_figure
 UNITS = (  # suffix of a figure's name -> its unit, longest first
     ("_N_per_mm", "N/mm"),
     ("_mm_s", "mm/s"),
+    ("_rpm", "rpm"),
     ("_Hz", "Hz"),
     ("_dB", "dB"),
     ("_mm", "mm"),

@@ -1,0 +1,80 @@
+"""Wall time of the acceptance battery (emasim.experiments.acceptance) on bench-step's plant.
+
+    python benchmarks/bench_acceptance.py [--quick] [--write]
+
+The whole battery (the default Battery) for both controller sets of bench-step, as
+``emasim acceptance bench-step`` runs it: threads in this process, the compiled core loaded
+beforehand (one short run), REPEATS times; the median wall time. The target (issue 14) is
+under two minutes on the 2-core development machine.
+
+``bench_engine.py`` calls :func:`battery_figures` for its results; ``--write`` stores this
+figure alone in benchmarks/results.json (with the day it was measured) and rewrites the
+README's speed table. ``--quick`` (what CI runs): one set, QUICK_FREQUENCIES frequencies.
+"""
+
+import argparse
+import datetime
+import json
+import statistics
+import time
+from pathlib import Path
+
+from readme_figures import RESULTS, write_readme
+
+from emasim.experiments.acceptance import Battery, run_acceptance
+from emasim.scenarios.loader import load_scenario
+from emasim.sim.engine import simulate
+
+SCENARIO, REPEATS = "bench-step", 3
+QUICK_FREQUENCIES = (1.0, 10.0)
+
+
+def battery_figures(quick: bool = False) -> dict:
+    scenario = load_scenario(SCENARIO)
+    simulate(load_scenario(SCENARIO, settings=["duration_s=0.01"]).setup())  # load the core
+    if quick:
+        battery = Battery(frequencies_Hz=QUICK_FREQUENCIES, stiffness_frequencies_Hz=(1.0,))
+        labels, repeats = [scenario.compare[0].label], 1
+    else:
+        battery, labels, repeats = Battery(), None, REPEATS
+    walls = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = run_acceptance(scenario, labels=labels, battery=battery)
+        walls.append(time.perf_counter() - start)
+    return {
+        "scenario": SCENARIO,
+        "labels": list(result.figures),
+        "runs": result.meta["runs"],
+        "simulated_s": result.meta["simulated_s"],
+        "repeats": repeats,
+        "wall_s": statistics.median(walls),
+        "date": datetime.date.today().isoformat(),
+    }
+
+
+def report(figures: dict) -> None:
+    print(
+        f"acceptance battery of {figures['scenario']} ({', '.join(figures['labels'])}): "
+        f"{figures['runs']} runs, {figures['simulated_s']:.0f} s simulated, "
+        f"median wall {figures['wall_s']:.1f} s of {figures['repeats']}"
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="one set, two frequencies")
+    parser.add_argument("--write", action="store_true", help="store it and rewrite the README")
+    args = parser.parse_args()
+    figures = battery_figures(args.quick)
+    report(figures)
+    if args.write and not args.quick:
+        results = json.loads(Path(RESULTS).read_text())
+        results["acceptance"] = figures
+        Path(RESULTS).write_text(json.dumps(results, indent=2) + "\n")
+        write_readme(results)
+        print(f"wrote {RESULTS} and the README's speed table")
+
+
+if __name__ == "__main__":
+    main()

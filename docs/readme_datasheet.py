@@ -1,0 +1,74 @@
+"""The README's acceptance datasheet, rendered from ``docs/datasheet.json``: the figures
+``emasim acceptance bench-step`` measured for bench-step's controller sets.
+
+    python docs/readme_datasheet.py SHEET_FOLDER   # store SHEET_FOLDER/datasheet.json and its
+                                                   # bode.png in docs/, rewrite the README
+    python docs/readme_datasheet.py                # rewrite the README from docs/
+
+The README holds the table between ``<!-- datasheet:begin -->`` and ``<!-- datasheet:end -->``;
+``tests/test_acceptance.py`` checks that the block equals :func:`render` of the stored sheet.
+Standard library only.
+"""
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+STORE = ROOT / "docs" / "datasheet.json"
+BODE = ROOT / "docs" / "acceptance-bode.png"
+README = ROOT / "README.md"
+BEGIN, END = "<!-- datasheet:begin -->", "<!-- datasheet:end -->"
+ROWS = (  # datasheet key, the README's wording, unit
+    ("bandwidth_small_Hz", "bandwidth (-3 dB), small signal", "Hz"),
+    ("phase_90_small_Hz", "-90 deg phase, small signal", "Hz"),
+    ("bandwidth_large_Hz", "bandwidth (-3 dB), large signal", "Hz"),
+    ("threshold_mm", "threshold", "mm"),
+    ("hysteresis_mm", "hysteresis width", "mm"),
+    ("load_step_stiffness_N_per_mm", "stiffness under a load step (peak deflection)", "N/mm"),
+    ("dynamic_stiffness_min_N_per_mm", "least dynamic stiffness", "N/mm"),
+    ("no_load_rate_mm_s", "no-load rate", "mm/s"),
+    ("rate_at_rated_load_mm_s", "rate at rated load", "mm/s"),
+    ("stall_force_N", "stall force", "N"),
+    ("energy_per_cycle_J", "energy per large-signal cycle at 1 Hz", "J"),
+)
+
+
+def number(x) -> str:
+    return "n/a" if x is None else f"{x:.3g}"
+
+
+def render(sheet: dict) -> str:
+    """The Markdown between the README's markers (ends with a newline)."""
+    labels = list(sheet["sets"])
+    first = sheet["sets"][labels[0]]
+    lines = [
+        f"| `{sheet['scenario']}`, small signal ±{number(first['small_amplitude_mm'])} mm, "
+        f"large ±{number(first['large_amplitude_mm'])} mm | unit | " + " | ".join(labels) + " |",
+        "|---|---|" + "---|" * len(labels),
+    ]
+    for key, name, unit in ROWS:
+        cells = " | ".join(number(sheet["sets"][label][key]) for label in labels)
+        lines.append(f"| {name} | {unit} | {cells} |")
+    return "\n".join(lines) + "\n"
+
+
+def block_of(text: str) -> str:
+    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
+    return text[start : text.index(END, start)]
+
+
+def main() -> None:
+    if len(sys.argv) > 1:
+        folder = Path(sys.argv[1])
+        STORE.write_text((folder / "datasheet.json").read_text())
+        shutil.copyfile(folder / "bode.png", BODE)
+    text = README.read_text()
+    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
+    sheet = json.loads(STORE.read_text())
+    README.write_text(text[:start] + render(sheet) + text[text.index(END, start) :])
+
+
+if __name__ == "__main__":
+    main()
