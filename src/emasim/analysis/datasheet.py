@@ -31,7 +31,7 @@ FIGURES = (
         "bode.png",
         "Frequency response",
         "Output over command, small signal (solid) and large signal (dashed), from stepped "
-        "sines; the amplitudes are in the table. Grey: -3 dB, -45 deg and -90 deg.",
+        "sines of the command amplitudes in the legend. Grey: -3 dB, -45 deg and -90 deg.",
     ),
     (
         "stiffness.png",
@@ -66,7 +66,9 @@ def plot_bode(curves: dict) -> Figure:
         color = f"C{k}"
         for size, style in (("small", "-o"), ("large", "--s")):
             f, h = c[size]
-            gain.semilogx(f, fr.gain_dB(h), style, color=color, ms=3, label=f"{label}, {size}")
+            amplitude = c["amplitudes_mm"][size]
+            name = f"{label}, {size} (±{amplitude:.3g} mm)"
+            gain.semilogx(f, fr.gain_dB(h), style, color=color, ms=3, label=name)
             phase.semilogx(f, fr.phase_deg(h), style, color=color, ms=3)
     gain.axhline(-3.0, color="0.6", lw=0.8)
     for level in (-45.0, -90.0):

@@ -548,6 +548,10 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
         "small_amplitude_mm": battery.small_amplitude * drive.stroke_m / MM,
         "large_amplitude_mm": battery.large_amplitude * drive.stroke_m / MM,
     }
+    curves["amplitudes_mm"] = {
+        "small": figures["small_amplitude_mm"],
+        "large": figures["large_amplitude_mm"],
+    }
     for size in ("small", "large"):
         f = np.array(battery.frequencies_Hz)
         h = np.array([measured[(size, x)]["response"] for x in battery.frequencies_Hz])
