@@ -15,6 +15,7 @@ from emasim.plant.linkage import rudder_angle_of_extension
 from emasim.scenarios.loader import load_scenario
 
 SHORT = ["duration_s=0.5"]
+DEFAULT_PID = "controllers='pid'"  # the pid cascade with the library's default gains
 
 
 def rudder_deg(result):
@@ -23,12 +24,12 @@ def rudder_deg(result):
 
 @pytest.fixture(scope="module")
 def coupled():
-    return run_scenario(load_scenario("cosim-step", controllers=["pid"], settings=SHORT))
+    return run_scenario(load_scenario("cosim-step", settings=[*SHORT, DEFAULT_PID]))
 
 
 def cosim(step_s):
     settings = [*SHORT, f"solver.communication_step_s={step_s}"]
-    return run_scenario(load_scenario("cosim-step", controllers=["pid"], settings=settings))
+    return run_scenario(load_scenario("cosim-step", settings=[*settings, DEFAULT_PID]))
 
 
 def test_the_linkage_turns_the_rudder_to_the_command(coupled):

@@ -1,5 +1,6 @@
 """Fair tuning: one cost, one search, one budget for every controller set; resumable."""
 
+import json
 import tomllib
 
 import numpy as np
@@ -9,9 +10,21 @@ from typer.testing import CliRunner
 
 from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
 from emasim.cli import app
-from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
+from emasim.scenarios.loader import (
+    load_scenario,
+    read_scenario_file,
+    read_scenario_text,
+    validate_scenario,
+)
 from emasim.sim.engine import simulate
-from emasim.tuning import search_space, study_key, tune_scenario, tune_variant
+from emasim.tuning import (
+    TUNED_HEADER,
+    search_space,
+    study_key,
+    tune_scenario,
+    tune_variant,
+    tuned_toml,
+)
 
 SHORT = ["duration_s=0.05", "load.motor_torque_Nm=[]"]
 
@@ -45,7 +58,13 @@ def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_pat
     tuned, best, given, study = tune_variant(
         scenario, "PI", scenario.controllers, 4, storage, seed=1
     )
-    assert study.trials[0].params == {"speed.bandwidth_Hz": 50.0}  # the gains given
+    # the gains given: those of the comparison's PI set, which the choice starts from
+    given_gain = scenario.controllers.speed.bandwidth_Hz
+    assert (
+        given_gain
+        == read_scenario_file("speed-step")[0]["compare"][0]["controllers"]["speed"]["bandwidth_Hz"]
+    )
+    assert study.trials[0].params == {"speed.bandwidth_Hz": given_gain}
     assert given == study.trials[0].value and best <= given
     assert tuned.speed.bandwidth_Hz == pytest.approx(study.best_params["speed.bandwidth_Hz"])
     *_, again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1)
@@ -97,3 +116,19 @@ def test_tune_command_writes_a_valid_scenario(tmp_path):
     assert result.exit_code == 0, result.output
     tuned = validate_scenario(tomllib.loads(save.read_text()))
     assert tuned.controllers.speed.name == "adrc" and tuned.tuning
+
+
+def test_the_tuned_file_keeps_the_scenario_files_comments_and_layout():
+    text, _ = read_scenario_text("bench-step")
+    raw = tomllib.loads(text)
+    tuned = json.loads(json.dumps(raw))
+    tuned["compare"][0]["controllers"]["speed"]["bandwidth_Hz"] = 7.5
+    tuned["tuning"]["seed"] = 3
+    written = tuned_toml(tuned, "bench-step", text)
+    assert written.startswith(TUNED_HEADER)
+    assert tomllib.loads(written) == tuned
+    comments = [line for line in text.splitlines() if line.lstrip().startswith("#")]
+    assert comments and all(line in written.splitlines() for line in comments)
+    assert "preload_Nm = 200.0  # ours" in written  # an inline comment of an unchanged value
+    again = tuned_toml(tuned, "bench-step", written)  # re-tuning a tuned file: one header
+    assert again == written

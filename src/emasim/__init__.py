@@ -26,13 +26,18 @@ def _version() -> str:
 
 def __getattr__(name: str):
     """``__version__``, read from the installed metadata when first asked for (importing
-    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario), and
-    ``linearize`` (:func:`emasim.linear.linearize`), loaded when first used (it loads
-    python-control and the compiled core)."""
+    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario),
+    ``run`` (:func:`emasim.experiments.batch.run`) and ``linearize``
+    (:func:`emasim.linear.linearize`), loaded when first used (they load the compiled core,
+    and python-control)."""
     if name == "__version__":
         return _version()
     if name == "linearize":
         from .linear import linearize
 
         return linearize
+    if name == "run":
+        from .experiments.batch import run
+
+        return run
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -7,6 +7,7 @@ interruption says so (exit 130), and an unexpected failure is one line naming it
 write (:mod:`emasim.output`); replacing an earlier emasim result needs ``--force``.
 """
 
+import logging
 import os
 import sys
 import time
@@ -15,6 +16,7 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 from typer.core import TyperGroup
@@ -23,6 +25,7 @@ from .errors import EmasimError
 
 console = Console()
 err_console = Console(stderr=True)
+log = logging.getLogger("emasim")
 
 
 def _say_error(message: str) -> None:
@@ -76,12 +79,67 @@ app = typer.Typer(
 FORCE_HELP = "replace an earlier emasim result there (never anything emasim did not write)"
 
 
+def _show_version(value: bool) -> None:
+    if value:
+        from . import __version__
+
+        console.print(f"emasim {__version__}", highlight=False)
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: Annotated[
+        bool,
+        typer.Option(
+            "--version", callback=_show_version, is_eager=True, help="print the version and exit"
+        ),
+    ] = False,
+    quiet: Annotated[
+        bool, typer.Option("--quiet", "-q", help="only warnings and errors: no tables, no progress")
+    ] = False,
+    verbose: Annotated[
+        bool,
+        typer.Option("--verbose", help="also the library's debug messages (each run's timing)"),
+    ] = False,
+) -> None:
+    """emasim: electromechanical actuator simulation and controller comparison."""
+    from .errors import InputError
+
+    if quiet and verbose:
+        raise InputError("--quiet and --verbose: give one of them")
+    _configure_logging(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
+
+
+class _ConsoleHandler(logging.Handler):
+    """Log records as lines on stderr (rich), warnings marked as such."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = self.format(record)
+        if record.levelno >= logging.WARNING:
+            err_console.print(f"[bold yellow]warning:[/] {escape(text)}", highlight=False)
+        else:
+            err_console.print(text, highlight=False, markup=False)
+
+
+def _configure_logging(level: int) -> None:
+    """The ``emasim`` logger's level and one handler to stderr (replaced on every command)."""
+    log.handlers[:] = [_ConsoleHandler()]
+    log.setLevel(level)
+    log.propagate = False
+
+
+def _loud() -> bool:
+    """Tables, progress and notes are shown (not --quiet)."""
+    return log.getEffectiveLevel() <= logging.INFO
+
+
 def _notice_compile() -> None:
     """One line before the one-off compile of the simulation core (numba's cache is cold)."""
     from . import NUMBA_CACHE_DIR, numba_cache
 
     if numba_cache.is_cold(NUMBA_CACHE_DIR):
-        err_console.print("compiling the simulation core: first run only", highlight=False)
+        log.info("compiling the simulation core: first run only")
 
 
 def _fail(err: Exception) -> None:
@@ -136,7 +194,7 @@ class _LazyProgress:
         self.task = None
 
     def __call__(self, fraction: float) -> None:
-        if self.bar is None and time.perf_counter() - self.start > self.delay_s:
+        if self.bar is None and _loud() and time.perf_counter() - self.start > self.delay_s:
             self.bar = Progress(
                 TextColumn("{task.description}"),
                 BarColumn(),
@@ -160,11 +218,13 @@ def _print_warnings(by_label: dict[str, dict]) -> None:
 
     for label, metrics in by_label.items():
         for line in run_warnings(metrics):
-            err_console.print(f"[bold yellow]warning:[/] {label}: {line}", highlight=False)
+            log.warning(f"{label}: {line}")
 
 
 def _print_metrics(by_label: dict[str, dict], title: str) -> None:
     """One row per metric, one column per run."""
+    if not _loud():
+        return
     table = Table(title=title)
     table.add_column("metric")
     for label in by_label:
@@ -184,8 +244,13 @@ def run(
         typer.Option(
             "--controller",
             "-c",
-            help="LOOP=NAME, e.g. speed=st-gpio (repeatable), or a cascade: hybrid, pid",
+            help="LOOP=NAME, e.g. speed=st-gpio (repeatable), or a cascade: hybrid, pid; "
+            "starts from the gains of the comparison's set that uses it",
         ),
+    ] = None,
+    label: Annotated[
+        str | None,
+        typer.Option("--label", "-l", help="run this controller set of the comparison alone"),
     ] = None,
     setting: Annotated[
         list[str] | None,
@@ -210,6 +275,10 @@ def run(
         ),
     ] = False,
     plot: Annotated[bool, typer.Option(help="write plot.png")] = True,
+    trace_format: Annotated[
+        str,
+        typer.Option("--format", help="the traces' file: parquet, csv or mat (MATLAB, with units)"),
+    ] = "parquet",
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
@@ -217,36 +286,42 @@ def run(
     from .scenarios.loader import load_scenario
 
     try:
-        sc = load_scenario(scenario, settings=setting or [], controllers=controller or [])
+        sc = load_scenario(
+            scenario, settings=setting or [], controllers=controller or [], label=label
+        )
         # the compiled core (numba) loads only for a valid scenario
-        from .experiments.batch import run_comparison
-        from .experiments.runs import run_scenario
+        from .experiments.batch import run as run_any
         from .sim.cosim import check_fmu_trust
+        from .sim.result import check_trace_format
 
         check_fmu_trust(sc, trust_fmu)
+        check_trace_format(trace_format)
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time
         _notice_compile()
         progress = _LazyProgress(f"simulating {sc.name}")
         try:
-            if sc.compare:
-                result = run_comparison(sc, progress=progress, trust_fmu=trust_fmu)
-                by_label = result.metrics
-            else:
-                result = run_scenario(sc, progress=progress, trust_fmu=trust_fmu)
-                by_label = {sc.controllers_label(): result.metrics}
+            result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
+            by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}
         finally:
             progress.close()
-        folder = result.save(out, plot=plot, force=force)
+        folder = result.save(out, plot=plot, force=force, trace_format=trace_format)
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")
     _print_warnings(by_label)
-    console.print(
+    if label or controller:
+        origin = sc.tuning.get("gains_from")
+        log.info(
+            f"gains: those of the comparison's controller set {origin}"
+            if origin
+            else "gains: the scenario's own and the library's defaults (no controller set of "
+            "the comparison uses this choice)"
+        )
+    log.info(
         f"simulated {sc.duration_s:g} s x {len(by_label)} in "
         f"{result.meta['simulation_wall_s']:.3f} s (real-time factor "
-        f"{result.meta['real_time_factor']:.4f}); wrote {folder}/",
-        highlight=False,
+        f"{result.meta['real_time_factor']:.4f}); wrote {folder}/"
     )
 
 
@@ -278,12 +353,14 @@ def tune(
         apply_controller_choice,
         apply_setting,
         read_scenario_file,
+        read_scenario_text,
         validate_scenario,
     )
     from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
 
     try:
         raw, source = read_scenario_file(scenario)
+        text, _ = read_scenario_text(scenario)  # its comments and layout stay in the tuned file
         if controller:
             raw.pop("compare", None)
         for choice in controller or []:
@@ -302,21 +379,21 @@ def tune(
 
     def report(label, before, after):
         shown = "n/a (its trial was interrupted)" if before is None else f"{before:.5g}"
-        console.print(f"{label}: cost {shown} -> {after:.5g}", highlight=False)
+        log.info(f"{label}: cost {shown} -> {after:.5g}")
 
     try:
         tuned, _ = tune_scenario(raw, sc, trials, study_storage, seed, report=report)
         target = save or fresh_file(root, f"{slug(sc.name)}", ".toml")
         write_file(
             target,
-            tuned_toml(tuned, sc.name),
+            tuned_toml(tuned, sc.name, text),
             force=force,
             is_ours=is_tuned_scenario,
             what="--save",
         )
     except EmasimError as err:
         _fail(err)
-    console.print(f"tuned scenario written to {target} (study in {url})", highlight=False)
+    log.info(f"tuned scenario written to {target} (study in {url})")
 
 
 @app.command()
@@ -383,6 +460,7 @@ def study(
         TimeRemainingColumn(),
         console=err_console,
         transient=True,
+        disable=not _loud(),
     )
     task = bar.add_task(f"study of {scenario}", total=None)
 
@@ -395,15 +473,16 @@ def study(
     except EmasimError as err:
         _fail(err)
     _print_study(result)
-    console.print(
+    log.info(
         f"{len(result.table)} runs in {out}/ (metrics.parquet, summary/) in "
-        f"{time.perf_counter() - start:.1f} s",
-        highlight=False,
+        f"{time.perf_counter() - start:.1f} s"
     )
 
 
 def _print_study(result) -> None:
     """Median [5 %, 95 %] of each metric that varies, one column per controller set."""
+    if not _loud():
+        return
     from .experiments.study import metric_columns
 
     summary = result.summary()
@@ -486,10 +565,8 @@ def reproduce(
         _fail(err)
     finally:
         progress.close()
-    console.print(
-        f"wrote {folder}/report.md, report.html, tables.json in "
-        f"{time.perf_counter() - start:.1f} s",
-        highlight=False,
+    log.info(
+        f"wrote {folder}/report.md, report.html, tables.json in {time.perf_counter() - start:.1f} s"
     )
 
 
@@ -531,6 +608,7 @@ def acceptance(
             TimeRemainingColumn(),
             console=err_console,
             transient=True,
+            disable=not _loud(),
         )
         task = bar.add_task(f"acceptance battery of {sc.name}", total=None)
         with bar:
@@ -541,14 +619,15 @@ def acceptance(
     except EmasimError as err:
         _fail(err)
     _print_datasheet(result)
-    console.print(
+    log.info(
         f"{result.meta['runs']} runs, {result.meta['simulated_s']:.0f} s simulated in "
-        f"{time.perf_counter() - start:.1f} s; wrote {folder}/ (datasheet.json, report.html)",
-        highlight=False,
+        f"{time.perf_counter() - start:.1f} s; wrote {folder}/ (datasheet.json, report.html)"
     )
 
 
 def _print_datasheet(result) -> None:
+    if not _loud():
+        return
     from .analysis.datasheet import cell, unit_of
 
     table = Table(title=f"{result.scenario.name}: acceptance datasheet")
@@ -605,4 +684,4 @@ def export_fmu(
     except EmasimError as err:
         _fail(err)
     what = "mechanism" if mechanism else "plant"
-    console.print(f"wrote {path} ({what} FMU, FMI 2.0 co-simulation, {preset})", highlight=False)
+    log.info(f"wrote {path} ({what} FMU, FMI 2.0 co-simulation, {preset})")

@@ -18,7 +18,7 @@ import time
 
 from ..errors import InputError
 from ..sim.cosim import check_fmu_trust
-from ..sim.result import Comparison
+from ..sim.result import Comparison, Result
 from .runs import meta_of, run_scenario
 
 CONNECT_TIMEOUT_S = 10
@@ -139,6 +139,16 @@ def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progre
 
 def _run(scenario, trust_fmu, label):
     return run_scenario(scenario, trust_fmu=trust_fmu, label=label)
+
+
+def run(scenario, progress=None, trust_fmu: bool = False, client=None) -> "Comparison | Result":
+    """Run a scenario as the command line does: every controller set of its comparison in
+    parallel (a :class:`~emasim.sim.result.Comparison`), or its one run (a Result) when it
+    compares nothing (``load_scenario(..., label=...)`` picks one set). Both have ``metrics``,
+    ``plot()`` and ``save()``."""
+    if scenario.compare:
+        return run_comparison(scenario, progress, trust_fmu, client)
+    return run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)
 
 
 def run_comparison(scenario, progress=None, trust_fmu: bool = False, client=None) -> Comparison:

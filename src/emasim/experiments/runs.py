@@ -2,8 +2,15 @@
 
 import dataclasses
 import datetime
+import functools
 import platform
+import shlex
+import subprocess
+import sys
+from collections.abc import Callable
 from importlib.metadata import version
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .. import __version__
 from ..analysis.report import ANALYSIS_COLUMNS, run_metrics, run_warnings, undefined_metrics
@@ -11,47 +18,103 @@ from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
 
+if TYPE_CHECKING:
+    from ..scenarios.schema import Scenario
+    from ..sim.setup import Setup
+
 
 def meta_of(scenario, wall_s: float) -> dict:
-    """What a saved result needs to be regenerated and judged: versions, seed, timings."""
+    """What a saved result needs to be regenerated and judged: versions (emasim, its git commit
+    when it runs from a git checkout, Python, numpy, scipy, numba), the platform, the command
+    line, the seed and the timings."""
     return {
         "emasim_version": __version__,
+        **source_commit(),
         "seed": scenario.seed,
         "scenario": scenario.name,
         "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
         "python": platform.python_version(),
+        "numpy": version("numpy"),
+        "scipy": version("scipy"),
         "numba": version("numba"),
+        "platform": platform.platform(),
+        "command_line": shlex.join(sys.argv),
         "simulation_wall_s": wall_s,
         "real_time_factor": wall_s / scenario.duration_s,
     }
 
 
-def run_scenario(scenario, progress=None, trust_fmu: bool = False, label=None) -> Result:
+@functools.cache
+def source_commit() -> dict:
+    """``git_commit`` (and ``git_dirty``: uncommitted changes to the package) of the checkout
+    emasim's source is tracked in; {} for an installed copy (not tracked by any git tree, even
+    one it lies inside), or without git."""
+    package = Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        return subprocess.run(
+            ["git", "-C", str(package), *args],
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        ).stdout
+
+    try:
+        git("ls-files", "--error-unmatch", "__init__.py")  # the package itself is tracked
+        commit = git("rev-parse", "HEAD").strip()
+        dirty = bool(git("status", "--porcelain", "--", ".").strip())
+    except (OSError, subprocess.SubprocessError):
+        return {}
+    return {"git_commit": commit, "git_dirty": dirty}
+
+
+def run_scenario(
+    scenario: "Scenario",
+    progress: Callable[[float], None] | None = None,
+    trust_fmu: bool = False,
+    label: str | None = None,
+    setup: "Setup | None" = None,
+) -> Result:
     """Simulate a validated :class:`~emasim.scenarios.schema.Scenario` on the compiled engine.
 
     The Result carries the fully resolved scenario (so the run can be repeated exactly), the
     metadata (package version, seed, wall time of the simulation alone, the label, and why any
     metric is undefined) and the metrics. ``trust_fmu`` allows a scenario's
-    ``solver.mechanism_fmu`` to be loaded (its code runs in this process).
+    ``solver.mechanism_fmu`` to be loaded (its code runs in this process). ``setup`` runs that
+    :class:`~emasim.sim.setup.Setup` instead of the scenario's own: the scenario's with a slot
+    replaced by a law of your own (``scenario.setup().with_(speed=Compiled(...))``). Its
+    metadata then names the replaced slots' laws (``custom_laws``), which the saved
+    scenario.toml cannot hold.
     """
     check_fmu_trust(scenario, trust_fmu)
-    if scenario.solver.communication_step_s is not None:
+    if scenario.solver.communication_step_s is not None and setup is None:
         result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
     else:
-        setup = scenario.setup()
+        setup = setup if setup is not None else scenario.setup()
         if setup.record_signals is not None:  # and what the metrics and plots read
             setup = setup.with_(record_signals=(*setup.record_signals, *ANALYSIS_COLUMNS))
         result = simulate(setup, progress=progress)
-    result.scenario = scenario.model_dump(mode="json", exclude_none=True)
+    # the run that was made: a comparison's other sets are not part of it
+    result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
-    result.meta["label"] = label or scenario.controllers_label()
+    result.meta["label"] = (
+        label or scenario.tuning.get("controller_set") or scenario.controllers_label()
+    )
+    if "gains_from" in scenario.tuning:  # a controller set's gains, chosen by the loader
+        result.meta["gains_from"] = scenario.tuning["gains_from"]
     c = scenario.controllers
     names = {  # the controllers' configured names, not their compiled laws'
         "position": c.position.name if c.position is not None else None,
         "speed": c.speed.name,
         "current": "pi",  # CurrentPI, the library's current law
     }
-    loops = {slot: names[slot] for slot in result.description.loops}
+    laws = result.description.loops
+    own = scenario.setup().loop_laws() if setup is not None else laws
+    custom = {slot: law for slot, law in laws.items() if own.get(slot) != law}
+    if custom:
+        result.meta["custom_laws"] = custom
+    loops = {slot: custom.get(slot) or names[slot] for slot in laws}
     result.description = dataclasses.replace(result.description, loops=loops)
     result.metrics = run_metrics(result)
     undefined = undefined_metrics(result.metrics)

@@ -5,6 +5,7 @@ with no control characters in its strings; anything else is refused with one lin
 """
 
 import difflib
+import json
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -28,6 +29,14 @@ def builtin_scenarios() -> dict[str, Path]:
 
 def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
     """The raw TOML table of a built-in scenario name or a file path, and where it came from."""
+    text, source = read_scenario_text(name_or_path)
+    raw = parse_toml(text, f"scenario: {source}")
+    check_raw(raw, source)
+    return raw, source
+
+
+def read_scenario_text(name_or_path: str) -> tuple[str, str]:
+    """The text of a built-in scenario name or a file path, and where it came from."""
     shipped = builtin_scenarios()
     if name_or_path in shipped:
         path, source = shipped[name_or_path], name_or_path
@@ -49,9 +58,7 @@ def read_scenario_file(name_or_path: str) -> tuple[dict, str]:
         ) from None
     except OSError as err:
         raise InputError(f"scenario: cannot read {path} ({err.strerror or err})") from None
-    raw = parse_toml(text, f"scenario: {path}")
-    check_raw(raw, source)
-    return raw, source
+    return text, source
 
 
 def parse_toml(text: str, what: str) -> dict:
@@ -154,17 +161,54 @@ def _item(items: list, part: str, key: str, what: str):
 
 
 def load_scenario(
-    name_or_path: str, settings: list[str] = (), controllers: list[str] = ()
+    name_or_path: str,
+    settings: list[str] = (),
+    controllers: list[str] = (),
+    label: str | None = None,
 ) -> Scenario:
-    """Read, override and validate a scenario; raise InputError naming the field on failure."""
+    """Read, override and validate a scenario; raise InputError naming the field on failure.
+
+    ``label`` runs that controller set of the comparison alone, with its gains; each of
+    ``controllers`` (``LOOP=NAME`` or a cascade) then replaces a loop, starting from the gains
+    of the comparison's first set that uses it, else from the library's defaults. Either
+    leaves a single run (no comparison); the set whose gains it took is recorded as
+    ``tuning.gains_from``, and the one ``label`` chose as ``tuning.controller_set`` (the run's
+    label)."""
     raw, source = read_scenario_file(name_or_path)
-    if controllers:
-        raw.pop("compare", None)  # an explicit choice runs that one controller set
-    for choice in controllers:
-        apply_controller_choice(raw, choice)
+    choose_controllers(raw, list(controllers), label)
     for setting in settings:
         apply_setting(raw, setting)
     return validate_scenario(raw, source)
+
+
+def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> None:
+    """Apply ``label`` and ``controllers`` to a raw scenario table (see :func:`load_scenario`)."""
+    if label is None and not controllers:
+        return
+    sets = {entry.get("label"): entry for entry in raw.pop("compare", []) or []}
+    origin = []
+    if label is not None:
+        if label not in sets:
+            known = ", ".join(map(str, sets)) or "none: the scenario compares nothing"
+            raise InputError(f"--label: {label!r} is no controller set of it; choose from: {known}")
+        raw["controllers"] = json.loads(json.dumps(sets[label].get("controllers", {})))
+        raw.setdefault("tuning", {})["controller_set"] = label
+        origin.append(label)
+    for choice in controllers:
+        apply_controller_choice(raw, choice)
+        loop, _, name = choice.partition("=")
+        for set_label, entry in sets.items():
+            chosen = entry.get("controllers", {})
+            if not name and chosen.get("cascade") == choice:  # a cascade: that set's loops
+                raw["controllers"] = json.loads(json.dumps(chosen))
+            elif name and isinstance(chosen.get(loop), dict) and chosen[loop].get("name") == name:
+                raw["controllers"][loop] = dict(chosen[loop])
+            else:
+                continue
+            origin.append(set_label)
+            break
+    if origin:
+        raw.setdefault("tuning", {})["gains_from"] = ", ".join(dict.fromkeys(origin))
 
 
 def validate_scenario(raw: dict, source: str = "scenario") -> Scenario:

@@ -16,6 +16,8 @@ the loop is compiled once, eagerly and cached on disk, whatever the controllers.
 
 import math
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import types
@@ -73,6 +75,9 @@ from .core import (
 )
 from .diagnosis import likely_cause
 from .result import Result, RunDescription
+
+if TYPE_CHECKING:
+    from .setup import Setup
 from .trace import (
     C_CURRENT_LIMIT,
     C_IQ_REF,
@@ -454,7 +459,7 @@ class EngineRun:
         )
 
 
-def simulate(setup, progress=None):
+def simulate(setup: "Setup", progress: Callable[[float], None] | None = None) -> Result:
     """Run ``setup`` (a :class:`emasim.sim.setup.Setup`) on the compiled engine.
 
     progress, if given, is called with the fraction done after each chunk of ticks. Returns a

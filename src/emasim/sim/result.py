@@ -1,9 +1,10 @@
 """Results: the traces of a run, or of a comparison of several controller sets; save and load.
 
-A run folder holds ``result.parquet`` (traces), ``metrics.json``, ``scenario.toml`` (the fully
-resolved scenario), ``meta.json`` (package version, seed, wall time of the simulation) and
-``plot.png``. A comparison folder holds one such folder per controller set, named by its label,
-and beside them ``comparison.png``, ``metrics.json`` (label -> metrics), ``scenario.toml`` and
+A run folder holds the traces (``result.parquet``, or ``result.csv`` or ``result.mat`` with
+``trace_format``), ``metrics.json``, ``scenario.toml`` (the fully resolved scenario),
+``meta.json`` (package version, seed, wall time of the simulation) and ``plot.png``. A
+comparison folder holds one such folder per controller set, named by its label, and beside
+them ``comparison.png``, ``metrics.json`` (label -> metrics), ``scenario.toml`` and
 ``meta.json``. Folders are written by :func:`emasim.output.write_folder`: under a temporary name
 and renamed into place, so a crash never leaves half a result, and never over anything emasim
 did not write (replacing an earlier emasim result needs ``force=True``). Without a folder,
@@ -20,9 +21,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
 
+from ..errors import InputError
 from ..output import RUNS_ROOT, fresh_folder, json_text, slug, write_folder
 
 RPM_PER_RAD_S = 30.0 / np.pi
+TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
 
 
 @dataclass(frozen=True)
@@ -113,37 +116,77 @@ class Result:
             )
         return pa.Table.from_arrays(arrays, names=list(self.columns))
 
-    def write_files(self, folder: Path, plot: bool = True, traces: bool = True) -> None:
+    def to_csv(self, path: str | Path) -> None:
+        """The traces as CSV: a header of column names (each carries its unit), one row per
+        recorded sample, full float64 precision."""
+        np.savetxt(path, self.data, delimiter=",", header=",".join(self.columns), comments="")
+
+    def to_mat(self, path: str | Path) -> None:
+        """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
+        per column (a column vector), ``units`` (column -> unit), ``scenario`` and ``label``."""
+        from scipy.io import savemat
+
+        units = self.description.units if self.description is not None else {}
+        struct = {name: self.data[:, i] for i, name in enumerate(self.columns)}
+        struct["units"] = {name: units.get(name, "") for name in self.columns}
+        struct["scenario"] = self.scenario.get("name", "")
+        struct["label"] = self.meta.get("label", "")
+        savemat(path, {"emasim": struct}, oned_as="column")
+
+    def plot(self):
+        """The run's figure (emasim.analysis.plots.plot_result): a matplotlib Figure."""
+        from ..analysis.plots import plot_result
+
+        return plot_result(self)
+
+    def write_files(
+        self, folder: Path, plot: bool = True, traces: bool = True, trace_format: str = "parquet"
+    ) -> None:
         """Write the run's files into an existing folder (see :meth:`save`); without
-        ``traces``, no result.parquet (a study's runs: the metrics and the scenario)."""
+        ``traces``, no trace file (a study's runs: the metrics and the scenario)."""
         if traces:
-            pq.write_table(self._to_arrow(), folder / "result.parquet")
+            path = folder / f"result.{trace_format}"
+            if trace_format == "parquet":
+                pq.write_table(self._to_arrow(), path)
+            elif trace_format == "csv":
+                self.to_csv(path)
+            elif trace_format == "mat":
+                self.to_mat(path)
+            else:
+                raise ValueError(
+                    f"trace_format must be one of {TRACE_FORMATS}, got {trace_format!r}"
+                )
         meta = self.meta
         if self.description is not None:
             meta = {**meta, "run": self.description.to_json()}
         write_records(folder, self.metrics, meta, self.scenario)
         if plot:
-            from ..analysis.plots import plot_result, save_figure
+            from ..analysis.plots import save_figure
 
-            save_figure(plot_result(self), folder / "plot.png")
+            save_figure(self.plot(), folder / "plot.png")
 
     def save(
-        self, folder: str | Path | None = None, plot: bool = True, force: bool = False
+        self,
+        folder: str | Path | None = None,
+        plot: bool = True,
+        force: bool = False,
+        trace_format: str = "parquet",
     ) -> Path:
         """Write the run folder atomically and return its path (see :func:`default_folder`
-        when ``folder`` is None); ``force`` replaces an earlier emasim result there."""
-        return _save(self, folder, plot, force, "run")
+        when ``folder`` is None); ``force`` replaces an earlier emasim result there;
+        ``trace_format`` one of TRACE_FORMATS."""
+        return _save(self, folder, plot, force, "run", trace_format)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
-        """Read a run folder written by :meth:`save`."""
+        """Read a run folder written by :meth:`save` (its traces in any of TRACE_FORMATS)."""
         folder = Path(folder)
-        table = pq.read_table(folder / "result.parquet")
+        columns, data = read_traces(folder)
         meta = json.loads((folder / "meta.json").read_text())
         run = meta.pop("run", None)
         return cls(
-            columns=tuple(table.column_names),
-            data=np.array([c.to_numpy() for c in table.columns], dtype=np.float64).T,
+            columns=columns,
+            data=data,
             scenario=tomllib.loads((folder / "scenario.toml").read_text()),
             meta=meta,
             metrics=json.loads((folder / "metrics.json").read_text()),
@@ -163,25 +206,34 @@ class Comparison:
     def metrics(self) -> dict[str, dict]:
         return {label: r.metrics for label, r in self.results.items()}
 
-    def write_files(self, folder: Path, plot: bool = True) -> None:
-        """Write every run into a sub-folder named by its label, and the overlay beside them."""
+    def plot(self):
+        """The overlay of every controller set (emasim.analysis.plots.plot_comparison)."""
+        from ..analysis.plots import plot_comparison
+
+        return plot_comparison(self.results, self.scenario.get("name"))
+
+    def write_files(self, folder: Path, plot: bool = True, trace_format: str = "parquet") -> None:
+        """Write every run into a sub-folder named by its label (each with its own plot), and
+        the overlay beside them."""
         for label, result in self.results.items():
             sub = folder / slug(label)
             sub.mkdir()
-            result.write_files(sub, plot=False)
+            result.write_files(sub, plot=plot, trace_format=trace_format)
         write_records(folder, self.metrics, self.meta, self.scenario)
         if plot:
-            from ..analysis.plots import plot_comparison, save_figure
+            from ..analysis.plots import save_figure
 
-            save_figure(
-                plot_comparison(self.results, self.scenario.get("name")), folder / "comparison.png"
-            )
+            save_figure(self.plot(), folder / "comparison.png")
 
     def save(
-        self, folder: str | Path | None = None, plot: bool = True, force: bool = False
+        self,
+        folder: str | Path | None = None,
+        plot: bool = True,
+        force: bool = False,
+        trace_format: str = "parquet",
     ) -> Path:
         """Write the comparison folder atomically and return its path (see :meth:`Result.save`)."""
-        return _save(self, folder, plot, force, "comparison")
+        return _save(self, folder, plot, force, "comparison", trace_format)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
@@ -200,15 +252,44 @@ def default_folder(scenario: dict, what: str) -> Path:
     return fresh_folder(RUNS_ROOT / slug(scenario.get("name", "run")), what)
 
 
-def _save(result, folder, plot: bool, force: bool, kind: str) -> Path:
+def check_trace_format(trace_format: str) -> None:
+    if trace_format not in TRACE_FORMATS:
+        raise InputError(f"--format: one of {', '.join(TRACE_FORMATS)}, got {trace_format!r}")
+
+
+def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str) -> Path:
+    check_trace_format(trace_format)
     what = "compare" if kind == "comparison" else result.meta.get("label", "run")
     if folder is None:
         target, unique = default_folder(result.scenario, what), True
     else:
         target, unique = Path(folder), False
     return write_folder(
-        target, lambda tmp: result.write_files(tmp, plot), force=force, unique=unique, kind=kind
+        target,
+        lambda tmp: result.write_files(tmp, plot, trace_format=trace_format),
+        force=force,
+        unique=unique,
+        kind=kind,
     )
+
+
+def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:
+    """(column names, float64 data) of the traces a run folder holds, in any TRACE_FORMATS."""
+    if (folder / "result.parquet").exists():
+        table = pq.read_table(folder / "result.parquet")
+        data = np.array([c.to_numpy() for c in table.columns], dtype=np.float64).T
+        return tuple(table.column_names), data
+    if (folder / "result.csv").exists():
+        with open(folder / "result.csv") as f:
+            columns = tuple(f.readline().strip().split(","))
+        return columns, np.loadtxt(folder / "result.csv", delimiter=",", skiprows=1, ndmin=2)
+    from scipy.io import loadmat
+
+    struct = loadmat(folder / "result.mat", squeeze_me=True, struct_as_record=False)["emasim"]
+    columns = tuple(
+        name for name in struct._fieldnames if name not in ("units", "scenario", "label")
+    )
+    return columns, np.column_stack([np.atleast_1d(getattr(struct, c)) for c in columns])
 
 
 def write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:

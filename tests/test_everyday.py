@@ -1,0 +1,163 @@
+"""Everyday use: one way to run (``--label``, gains from the matching set, ``emasim.run``, a
+saved scenario that repeats the run, a user's own law with a full Result), the CLI's
+``--version``, ``--quiet`` and ``--verbose``, and the trace formats (parquet, CSV, MATLAB)."""
+
+import json
+import tomllib
+
+import numba
+import numpy as np
+import pytest
+import scipy.io
+from typer.testing import CliRunner
+
+import emasim
+from emasim.cli import app
+from emasim.control.slot import CONTROLLER_SIG, Compiled
+from emasim.experiments.runs import run_scenario
+from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
+from emasim.sim.result import Comparison, Result
+
+runner = CliRunner()
+SHORT = "duration_s=0.3"
+
+
+def invoke(*args):
+    return runner.invoke(app, list(args))
+
+
+def compared_speed_set(label: str) -> dict:
+    raw, _ = read_scenario_file("speed-step")
+    (entry,) = [e for e in raw["compare"] if e["label"] == label]
+    return entry["controllers"]["speed"]
+
+
+def test_version_is_the_package_version():
+    result = invoke("--version")
+    assert result.exit_code == 0
+    assert result.output.strip() == f"emasim {emasim.__version__}"
+
+
+def test_label_runs_one_set_with_its_gains_and_the_file_repeats_it(tmp_path):
+    out = tmp_path / "smc"
+    result = invoke("run", "speed-step", "--label", "SMC", "--set", SHORT, "--out", str(out))
+    assert result.exit_code == 0, result.output
+    assert "gains: those of the comparison's controller set SMC" in result.output
+    saved = tomllib.loads((out / "scenario.toml").read_text())
+    assert "compare" not in saved
+    assert saved["controllers"]["speed"] == compared_speed_set("SMC")
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["gains_from"] == "SMC"
+    again = run_scenario(validate_scenario(saved))
+    assert np.array_equal(again.data, Result.load(out).data, equal_nan=True)
+
+
+def test_a_controller_choice_starts_from_the_matching_sets_gains():
+    chosen = load_scenario("speed-step", controllers=["speed=st-gpio"])
+    tuned = compared_speed_set("ST-SMC+GPIO")
+    assert (
+        chosen.controllers.speed.model_dump(exclude_unset=False)
+        == load_scenario("speed-step", label="ST-SMC+GPIO").controllers.speed.model_dump()
+    )
+    assert chosen.controllers.speed.boundary_layer_rad_s == tuned["boundary_layer_rad_s"]
+    assert chosen.tuning["gains_from"] == "ST-SMC+GPIO"
+    unmatched = load_scenario("speed-step", controllers=["speed=adrc"])
+    assert "gains_from" not in unmatched.tuning
+
+
+def test_an_unknown_label_is_one_line():
+    result = invoke("run", "speed-step", "--label", "nope")
+    assert result.exit_code == 2
+    assert "--label: 'nope' is no controller set" in result.output
+    assert "PI, SMC, ST-SMC, ST-SMC+GPIO" in result.output
+
+
+def test_quiet_prints_no_table_and_verbose_conflicts(tmp_path):
+    out = tmp_path / "q"
+    quiet = invoke("--quiet", "run", "speed-step", "-l", "PI", "--set", SHORT, "--out", str(out))
+    assert quiet.exit_code == 0
+    assert quiet.output.strip() == ""
+    assert (out / "metrics.json").exists()
+    loud = invoke("run", "speed-step", "-l", "PI", "--set", SHORT, "--out", str(tmp_path / "l"))
+    assert "rise_time_s" in loud.output and "wrote" in loud.output
+    both = invoke("--quiet", "--verbose", "list")
+    assert both.exit_code == 2 and "--quiet and --verbose" in both.output
+
+
+@pytest.mark.parametrize("trace_format", ["csv", "mat"])
+def test_trace_formats_round_trip(tmp_path, trace_format):
+    out = tmp_path / trace_format
+    result = invoke(
+        "run",
+        "position-step",
+        "-l",
+        "PI",
+        "--set",
+        SHORT,
+        "--format",
+        trace_format,
+        "--out",
+        str(out),
+    )
+    assert result.exit_code == 0, result.output
+    assert not (out / "result.parquet").exists()
+    loaded = Result.load(out)
+    fresh = emasim.run(load_scenario("position-step", label="PI", settings=[SHORT]))
+    assert loaded.columns == fresh.columns
+    assert np.array_equal(loaded.data, fresh.data, equal_nan=True)  # CSV: 18 digits
+    if trace_format == "mat":
+        struct = scipy.io.loadmat(out / "result.mat", squeeze_me=True, struct_as_record=False)
+        assert struct["emasim"].units.iq_A == "A"
+        assert struct["emasim"].label == "PI"
+
+
+def test_a_bad_format_is_one_line(tmp_path):
+    result = invoke("run", "speed-step", "--format", "xls", "--out", str(tmp_path / "x"))
+    assert result.exit_code == 2
+    assert "--format: one of parquet, csv, mat" in result.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_meta_says_where_and_how_it_ran(tmp_path, monkeypatch):
+    out = tmp_path / "m"
+    args = ["run", "speed-step", "-l", "PI", "--set", SHORT, "--out", str(out)]
+    monkeypatch.setattr("sys.argv", ["emasim", *args])
+    invoke(*args)
+    meta = json.loads((out / "meta.json").read_text())
+    for key in ("numpy", "scipy", "numba", "python", "platform", "command_line"):
+        assert meta[key], key
+    assert meta["command_line"].startswith("emasim run speed-step -l PI")
+    assert meta["label"] == "PI"
+    assert len(meta.get("git_commit", "0" * 40)) == 40  # a git checkout, as in development
+
+
+def test_emasim_run_returns_the_comparison_with_plot_and_save(tmp_path):
+    comparison = emasim.run(load_scenario("speed-step", settings=[SHORT]))
+    assert isinstance(comparison, Comparison)
+    assert list(comparison.metrics) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
+    assert comparison.plot().axes
+    folder = comparison.save(tmp_path / "c")
+    for label in ("pi", "smc"):
+        assert (folder / label / "plot.png").exists()  # a plot in every run folder
+
+
+@numba.njit(CONTROLLER_SIG)
+def proportional_speed_law(state, params, meas, ref, ts, out):
+    out[0] = params[0] * (ref[0] - meas[0])
+    out[1] = 0.0
+
+
+def test_a_law_of_ones_own_gives_a_full_result(tmp_path):
+    scenario = load_scenario("speed-step", label="PI", settings=[SHORT])
+    setup = scenario.setup().with_(
+        speed=Compiled(proportional_speed_law, np.array([0.5]), np.zeros(1))
+    )
+    mine = run_scenario(scenario, setup=setup)
+    library = run_scenario(scenario)
+    assert mine.meta["custom_laws"] == {"speed": "proportional_speed_law"}
+    assert "custom_laws" not in library.meta
+    assert mine.metrics["rise_time_s"] != library.metrics["rise_time_s"]
+    assert mine.description.loops["speed"] == "proportional_speed_law"
+    saved = mine.save(tmp_path / "mine")
+    assert tomllib.loads((saved / "scenario.toml").read_text())["name"] == "speed-step"
+    assert (saved / "plot.png").exists()
