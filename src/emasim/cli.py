@@ -184,6 +184,25 @@ def list_all() -> None:
     console.print(table)
 
 
+def _runs_bar(description: str):
+    """A progress bar that counts runs (hidden with --quiet), and ``progress(done, total)``."""
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total} runs"),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=True,
+        disable=not _loud(),
+    )
+    task = bar.add_task(description, total=None)
+
+    def progress(done: int, total: int) -> None:
+        bar.update(task, completed=done, total=total)
+
+    return bar, progress
+
+
 class _LazyProgress:
     """A progress bar that appears only once a run has taken more than ``delay_s``."""
 
@@ -453,19 +472,7 @@ def study(
         traces=traces,
     )
     start = time.perf_counter()
-    bar = Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.completed}/{task.total} runs"),
-        TimeRemainingColumn(),
-        console=err_console,
-        transient=True,
-        disable=not _loud(),
-    )
-    task = bar.add_task(f"study of {scenario}", total=None)
-
-    def progress(done: int, total: int) -> None:
-        bar.update(task, completed=done, total=total)
+    bar, progress = _runs_bar(f"study of {scenario}")
 
     try:
         with bar:  # every sample is validated before a cluster starts
@@ -601,20 +608,9 @@ def acceptance(
             check_folder(out, force)  # refuse before spending the simulation time
         _notice_compile()
         start = time.perf_counter()
-        bar = Progress(
-            TextColumn("{task.description}"),
-            BarColumn(),
-            TextColumn("{task.completed}/{task.total} runs"),
-            TimeRemainingColumn(),
-            console=err_console,
-            transient=True,
-            disable=not _loud(),
-        )
-        task = bar.add_task(f"acceptance battery of {sc.name}", total=None)
+        bar, progress = _runs_bar(f"acceptance battery of {sc.name}")
         with bar:
-            result = run_acceptance(
-                sc, labels=label, progress=lambda d, n: bar.update(task, completed=d, total=n)
-            )
+            result = run_acceptance(sc, labels=label, progress=progress)
         folder = result.save(out, force=force)
     except EmasimError as err:
         _fail(err)

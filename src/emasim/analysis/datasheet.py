@@ -76,31 +76,34 @@ def plot_bode(curves: dict) -> Figure:
     gain.set_ylabel("gain (dB)")
     phase.set_ylabel("phase (deg)")
     phase.set_xlabel("frequency (Hz)")
-    gain.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    return fig
+    return _with_legend(fig, gain)
 
 
 def plot_stiffness(curves: dict) -> Figure:
-    fig = Figure(figsize=(7, 4), layout="constrained")
-    ax = fig.subplots()
+    fig, ax = _figure("frequency (Hz)", "|F/x| (N/mm)")
     for label, c in curves.items():
         ax.loglog(*c["stiffness"], "-o", ms=3, label=label)
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("|F/x| (N/mm)")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
-    return fig
+    return _with_legend(fig, ax)
 
 
 def plot_hysteresis(curves: dict) -> Figure:
+    fig, ax = _figure("command (mm)", "output - command (mm)")
+    for label, c in curves.items():
+        command, output = (np.asarray(v) for v in c["loop"])
+        ax.plot(command * 1e3, (output - command) * 1e3, lw=0.8, label=label)
+    return _with_legend(fig, ax)
+
+
+def _figure(xlabel: str, ylabel: str):
     fig = Figure(figsize=(7, 4), layout="constrained")
     ax = fig.subplots()
-    for label, c in curves.items():
-        command, output = c["loop"]
-        ax.plot(
-            np.asarray(command) * 1e3, (np.asarray(output) - command) * 1e3, lw=0.8, label=label
-        )
-    ax.set_xlabel("command (mm)")
-    ax.set_ylabel("output - command (mm)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    return fig, ax
+
+
+def _with_legend(fig: Figure, ax) -> Figure:
+    """The legend outside the data, right of the axes."""
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     return fig
 
