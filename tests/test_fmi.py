@@ -7,6 +7,7 @@ here, in a temporary folder: nothing is downloaded.
 """
 
 import json
+import sys
 import zipfile
 from pathlib import Path
 
@@ -35,6 +36,7 @@ from emasim.sim.fmi import (
     PLANT_INPUTS,
     PLANT_OUTPUTS,
     FmuSlave,
+    describe_fmu,
     export_mechanism_fmu,
     export_plant_fmu,
 )
@@ -214,6 +216,7 @@ def test_a_cosimulation_with_the_mechanism_fmu_matches_the_builtin_mechanism(mec
 
 MINIMAL_MECHANISM = """
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -329,3 +332,21 @@ def test_export_fmu_writes_an_fmu_and_refuses_bad_input(tmp_path):
         assert result.exit_code == 2, args
         assert message in result.output and len(result.output.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["linkage.fmu", "lumped.fmu"]
+
+
+def test_without_the_fmi_extra_export_says_how_to_install_it(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setitem(sys.modules, "pythonfmu", None)  # importing it now fails
+    result = CliRunner().invoke(app, ["export-fmu", "--out", "x.fmu"])
+    assert result.exit_code == 2, result.output
+    assert "needs emasim's FMI extra (pythonfmu is not installed)" in result.output
+    assert "pip install 'emasim[fmi]'" in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "x.fmu").exists()
+
+
+def test_without_the_fmi_extra_loading_an_fmu_says_how_to_install_it(monkeypatch, tmp_path):
+    (tmp_path / "m.fmu").write_bytes(b"not read: fmpy is missing")
+    monkeypatch.setitem(sys.modules, "fmpy", None)
+    with pytest.raises(InputError, match=r"loading an FMU needs emasim's FMI extra \(fmpy"):
+        describe_fmu(tmp_path / "m.fmu")

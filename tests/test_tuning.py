@@ -132,3 +132,17 @@ def test_the_tuned_file_keeps_the_scenario_files_comments_and_layout():
     assert "preload_Nm = 200.0  # ours" in written  # an inline comment of an unchanged value
     again = tuned_toml(tuned, "bench-step", written)  # re-tuning a tuned file: one header
     assert again == written
+
+
+def test_tuning_reports_each_trial(tmp_path):
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    seen = []
+    tune_variant(
+        scenario,
+        "PI",
+        scenario.controllers,
+        3,
+        f"sqlite:///{tmp_path / 's.db'}",
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]

@@ -31,7 +31,9 @@ log = logging.getLogger("emasim")
 def _say_error(message: str) -> None:
     """One line on stderr: ``error: message`` (newlines folded)."""
     text = " ".join(str(message).split())
-    err_console.print(f"[bold red]error:[/] {text}", highlight=False, soft_wrap=True, markup=True)
+    err_console.print(
+        f"[bold red]error:[/] {escape(text)}", highlight=False, soft_wrap=True, markup=True
+    )
 
 
 class _OneLineErrors(TyperGroup):
@@ -184,12 +186,13 @@ def list_all() -> None:
     console.print(table)
 
 
-def _runs_bar(description: str):
-    """A progress bar that counts runs (hidden with --quiet), and ``progress(done, total)``."""
+def _runs_bar(description: str, unit: str = "runs"):
+    """A progress bar that counts runs (or trials; hidden with --quiet), and
+    ``progress(done, total)``."""
     bar = Progress(
         TextColumn("{task.description}"),
         BarColumn(),
-        TextColumn("{task.completed}/{task.total} runs"),
+        TextColumn(f"{{task.completed}}/{{task.total}} {unit}"),
         TimeRemainingColumn(),
         console=err_console,
         transient=True,
@@ -400,8 +403,17 @@ def tune(
         shown = "n/a (its trial was interrupted)" if before is None else f"{before:.5g}"
         log.info(f"{label}: cost {shown} -> {after:.5g}")
 
+    bar, count = _runs_bar(f"tuning {sc.name}", unit="trials")
+
+    def progress(label, done, total):
+        bar.update(bar.task_ids[0], description=f"tuning {sc.name}: {label}")
+        count(done, total)
+
     try:
-        tuned, _ = tune_scenario(raw, sc, trials, study_storage, seed, report=report)
+        with bar:
+            tuned, _ = tune_scenario(
+                raw, sc, trials, study_storage, seed, report=report, progress=progress
+            )
         target = save or fresh_file(root, f"{slug(sc.name)}", ".toml")
         write_file(
             target,

@@ -166,10 +166,13 @@ def _plain(value):
     return value.unwrap() if hasattr(value, "unwrap") else value
 
 
-def tune_variant(scenario, label: str, controllers, trials: int, storage, seed: int = 0):
+def tune_variant(
+    scenario, label: str, controllers, trials: int, storage, seed: int = 0, progress=None
+):
     """Tune one controller set on ``scenario``; returns (tuned Controllers, best cost, the cost
     of the given gains or None while their trial is unfinished, study). ``storage`` is an
-    Optuna storage or URL (see :func:`open_storage`)."""
+    Optuna storage or URL (see :func:`open_storage`); ``progress(done, trials)`` is told the
+    finished trials after each one (a resumed study's earlier trials included)."""
     space = search_space(controllers)
     max_current = scenario.plant.motor.max_current_A
 
@@ -206,7 +209,16 @@ def tune_variant(scenario, label: str, controllers, trials: int, storage, seed: 
         study.enqueue_trial(start, user_attrs={GIVEN: True})
     complete = optuna.trial.TrialState.COMPLETE
     done = sum(t.state == complete for t in study.trials)
-    study.optimize(objective, n_trials=max(0, trials - done))
+    callbacks = []
+    if progress is not None:
+        progress(min(done, trials), trials)
+
+        def told(study_now, _):
+            finished = sum(t.state == complete for t in study_now.trials)
+            progress(min(finished, trials), trials)
+
+        callbacks.append(told)
+    study.optimize(objective, n_trials=max(0, trials - done), callbacks=callbacks)
     if not any(t.state == complete for t in study.trials):
         raise InputError(f"tune {label}: no trial completed; raise --trials")
     given = [t.value for t in study.trials if t.state == complete and t.user_attrs.get(GIVEN)]
@@ -214,19 +226,35 @@ def tune_variant(scenario, label: str, controllers, trials: int, storage, seed: 
     return tuned, study.best_value, (given[0] if given else None), study
 
 
-def tune_scenario(raw: dict, scenario, trials: int, storage: str, seed: int = 0, report=None):
+def tune_scenario(
+    raw: dict,
+    scenario,
+    trials: int,
+    storage: str,
+    seed: int = 0,
+    report=None,
+    progress=None,
+):
     """Tune every controller set of a scenario with the same budget; return the raw scenario
     table with the tuned gains written in, and label -> (cost before, cost after).
 
     ``raw`` is the scenario file's table (as read, before validation); the tuned values are
     written as overrides of each controller set, and a ``tuning`` record says how.
+    ``report(label, cost before, cost after)`` after each set, ``progress(label, done,
+    trials)`` after each trial.
     """
     tuned_raw = dict(raw)
     costs = {}
     entries = list(tuned_raw["compare"]) if scenario.compare else None
     for i, (label, variant) in enumerate(scenario.variants()):
         tuned, best, before, _ = tune_variant(
-            variant, label, variant.controllers, trials, storage, seed
+            variant,
+            label,
+            variant.controllers,
+            trials,
+            storage,
+            seed,
+            None if progress is None else lambda d, n, lb=label: progress(lb, d, n),
         )
         costs[label] = (before, best)
         if report is not None:

@@ -30,6 +30,7 @@ mechanism from an FMU (``solver.mechanism_fmu``).
 """
 
 import contextlib
+import importlib
 import json
 import shutil
 import sys
@@ -208,7 +209,7 @@ def is_emasim_fmu(path: Path) -> bool:
 def _build(path, script: str, resource_name: str, payload: dict, force: bool) -> Path:
     """Build an FMU from a slave script of emasim.sim.fmu and a JSON resource, then put it in
     place atomically (emasim.output.write_file: never over a file emasim did not write)."""
-    from pythonfmu import FmuBuilder
+    FmuBuilder = fmi_extra("pythonfmu", "exporting an FMU").FmuBuilder  # noqa: N806
 
     from ..output import check_file, write_file
 
@@ -233,12 +234,24 @@ def _build(path, script: str, resource_name: str, payload: dict, force: bool) ->
     return target
 
 
+def fmi_extra(module: str, what: str):
+    """Import ``module`` of the optional FMI extra (pythonfmu, fmpy), or say in one line how to
+    install it (InputError)."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        raise InputError(
+            f"{what} needs emasim's FMI extra ({module} is not installed): "
+            "pip install 'emasim[fmi]'"
+        ) from None
+
+
 # --- running FMUs ----------------------------------------------------------------------------
 
 
 def describe_fmu(path):
     """fmpy's model description of an FMI 2.0 co-simulation FMU; InputError if it is not one."""
-    from fmpy import read_model_description
+    read_model_description = fmi_extra("fmpy", "loading an FMU").read_model_description
 
     path = Path(path)
     if not path.is_file():
@@ -293,6 +306,7 @@ class FmuSlave:
     """
 
     def __init__(self, path, start_values: dict | None = None, start_time: float = 0.0):
+        fmi_extra("fmpy", "loading an FMU")
         from fmpy import extract
         from fmpy.fmi2 import FMU2Slave
 
