@@ -161,3 +161,28 @@ def test_a_law_of_ones_own_gives_a_full_result(tmp_path):
     saved = mine.save(tmp_path / "mine")
     assert tomllib.loads((saved / "scenario.toml").read_text())["name"] == "speed-step"
     assert (saved / "plot.png").exists()
+
+
+def test_plots_name_the_run_zoom_on_its_events_and_share_compared_axes():
+    from emasim.analysis.plots import plot_bench, plot_comparison, plot_result
+
+    comparison = emasim.run(load_scenario("speed-step", settings=["duration_s=0.6"]))
+    pi = comparison.results["PI"]
+    pi.meta["overrides"] = ["duration_s=0.6"]
+    figure = plot_result(pi)
+    top = figure.axes[0]
+    assert top.get_title() == "speed-step: PI (duration_s=0.6)"
+    assert [inset.get_title() for inset in top.child_axes] == ["from 0 s", "from 0.4 s"]
+    overlay = plot_comparison(comparison.results)
+    error = overlay.axes[1]
+    linthresh = error.yaxis.get_transform().linthresh
+    ticks = [v for v in error.get_yticks() if v != 0]
+    assert ticks and all(abs(v) >= 10 * linthresh for v in ticks)  # none crowd zero
+    overlay.canvas.draw()  # lay the figure out: display coordinates of axes and legends
+    for ax in overlay.axes[:3]:  # each legend right of its axes, outside the data
+        assert ax.get_legend().get_window_extent().x0 >= ax.get_window_extent().x1
+    bench = emasim.run(load_scenario("bench-step", settings=["duration_s=0.05"]))
+    axes = plot_bench(bench.results).axes
+    n = len(bench.results)
+    for row in (axes[:n], axes[n : 2 * n]):
+        assert all(row[0].get_shared_y_axes().joined(row[0], other) for other in row[1:])

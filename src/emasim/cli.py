@@ -327,6 +327,8 @@ def run(
             by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}
         finally:
             progress.close()
+        for record in [result, *getattr(result, "results", {}).values()]:
+            record.meta["overrides"] = list(setting or [])  # for the plots' titles
         folder = result.save(out, plot=plot, force=force, trace_format=trace_format)
     except EmasimError as err:
         _fail(err)

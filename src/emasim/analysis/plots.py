@@ -1,4 +1,13 @@
-"""Figures: one run (response, inner command, current) or several runs overlaid."""
+"""Figures: one run (response, inner command, current) or several runs overlaid.
+
+Conventions: legends sit outside the data, right of the axes; columns that compare controller
+sets share their y-axes; a run's title names the scenario, the controller set and the command
+line's overrides (``meta["overrides"]``); the output panel carries zoomed insets of the first
+response (the step's rise) and of the first load step, which are a few pixels wide on the
+whole run's axis; a symmetric-log axis has ticks at whole decades, a few per side.
+"""
+
+import math
 
 import numpy as np
 from matplotlib.figure import Figure  # files only: no pyplot, no display (a second of start-up)
@@ -23,6 +32,59 @@ def _line(ax, t, y, *style, **kwargs):
         keep = np.unique(np.concatenate([lo, hi, np.arange(n, t.size)]))
         t, y = t[keep], y[keep]
     return ax.plot(t, y, *style, **kwargs)
+
+
+def _legend(ax) -> None:
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0.0)
+
+
+def run_title(result) -> str:
+    """'scenario: label (key=value, ...)' from the run's scenario and metadata."""
+    name = result.scenario.get("name", "")
+    label = result.meta.get("label")
+    overrides = result.meta.get("overrides") or []
+    text = f"{name}: {label}" if label else name
+    return f"{text} ({', '.join(overrides)})" if overrides else text
+
+
+ZOOM_FRACTION = 0.08  # an inset spans this fraction of the run
+
+
+def _event_times(result) -> list[float]:
+    """The start of the response (the reference's first step or sine) and the first load step,
+    where the scenario has them (s)."""
+    times = []
+    for terms in result.scenario.get("reference", {}).values():
+        times += [float(term.get("time_s", term.get("start_s", 0.0))) for term in terms[:1]]
+    loads = [term for terms in result.scenario.get("load", {}).values() for term in terms]
+    steps = [float(term["time_s"]) for term in loads if term.get("type") == "step"]
+    return times[:1] + sorted(steps)[:1]
+
+
+def _insets(ax, traces: list[tuple], duration: float, times: list[float]) -> None:
+    """Zoomed copies of ``traces`` ((t, y, style, kwargs), see _panel_traces) from each time
+    on, as insets in the lower part of ``ax``."""
+    span = ZOOM_FRACTION * duration
+    for k, start in enumerate(times):
+        inset = ax.inset_axes([0.30 + 0.36 * k, 0.08, 0.30, 0.40])
+        for t, y, style, kwargs in traces:
+            keep = (t >= start - 0.1 * span) & (t <= start + span)
+            inset.plot(t[keep], np.asarray(y)[keep], *style, **{**kwargs, "label": None})
+        inset.tick_params(labelsize=6)
+        inset.grid(True, alpha=0.3)
+        inset.set_title(f"from {start:g} s", fontsize=6)
+
+
+def _symlog_ticks(ax, linthresh: float, top: float, per_side: int = 4) -> None:
+    """Ticks at 0 and at whole decades above linthresh, at most ``per_side`` on each side, so
+    that none crowd the linear band around zero."""
+    if not top > linthresh:
+        return
+    first, last = math.ceil(math.log10(linthresh)) + 1, math.floor(math.log10(top))
+    decades = list(range(first, last + 1))
+    step = max(1, -(-len(decades) // per_side))
+    ticks = [10.0**k for k in decades[::-1][::step]]
+    ax.set_yticks(sorted([-v for v in ticks] + [0.0] + ticks))
 
 
 def plot_result(result, title: str | None = None):
@@ -63,11 +125,25 @@ def plot_result(result, title: str | None = None):
     axes[2].set_xlabel("time (s)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
-    name = title or result.scenario.get("name", "")
+        _legend(ax)
+    _insets(axes[0], _panel_traces(axes[0]), float(t[-1] - t[0]), _event_times(result))
+    name = title or run_title(result)
     if name:
         axes[0].set_title(name)
     return fig
+
+
+def _panel_traces(ax) -> list[tuple]:
+    """The lines of a panel as (t, y, style, kwargs), to draw again in an inset."""
+    return [
+        (
+            np.asarray(line.get_xdata()),
+            np.asarray(line.get_ydata()),
+            (),
+            {"color": line.get_color(), "ls": line.get_linestyle(), "lw": line.get_linewidth()},
+        )
+        for line in ax.get_lines()
+    ]
 
 
 def _output(result):
@@ -99,14 +175,17 @@ def plot_comparison(results: dict, title: str | None = None):
     axes[0].set_ylabel(label)
     axes[1].set_ylabel(f"error, {label}")
     # symmetric log: the approach and the small steady-state error both stay visible
-    axes[1].set_yscale(
-        "symlog", linthresh=max(1e-4 * float(np.nanmax(np.abs(scale * reference))), 1e-12)
-    )
+    top = float(np.nanmax(np.abs(scale * reference)))
+    linthresh = max(1e-4 * top, 1e-12)
+    axes[1].set_yscale("symlog", linthresh=linthresh)
+    _symlog_ticks(axes[1], linthresh, top)
     axes[2].set_ylabel("iq (A)")
     axes[2].set_xlabel("time (s)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize=8)
+        _legend(ax)
+    duration = float(first.t[-1] - first.t[0])
+    _insets(axes[0], _panel_traces(axes[0]), duration, _event_times(first))
     if title:
         axes[0].set_title(title)
     return fig
@@ -123,7 +202,7 @@ def plot_bench(results: dict, title: str | None = None):
     from .report import rudder_traces
 
     fig = Figure(figsize=(5 * len(results), 6), layout="constrained")
-    axes = fig.subplots(2, len(results), sharex=True, squeeze=False)
+    axes = fig.subplots(2, len(results), sharex=True, sharey="row", squeeze=False)
     for col, (name, result) in enumerate(results.items()):
         angle, reference, rate, reference_rate = rudder_traces(result)
         _line(axes[0, col], result.t, reference, "k--", lw=1, label="command")
@@ -136,7 +215,8 @@ def plot_bench(results: dict, title: str | None = None):
         axes[1, col].set_xlabel("time (s)")
         for ax in axes[:, col]:
             ax.grid(True, alpha=0.3)
-            ax.legend(loc="best", fontsize=8)
+    for ax in axes[:, -1]:
+        _legend(ax)
     if title:
         fig.suptitle(title)
     return fig

@@ -210,7 +210,10 @@ class Comparison:
         """The overlay of every controller set (emasim.analysis.plots.plot_comparison)."""
         from ..analysis.plots import plot_comparison
 
-        return plot_comparison(self.results, self.scenario.get("name"))
+        name, overrides = self.scenario.get("name", ""), self.meta.get("overrides") or []
+        return plot_comparison(
+            self.results, f"{name} ({', '.join(overrides)})" if overrides else name
+        )
 
     def write_files(self, folder: Path, plot: bool = True, trace_format: str = "parquet") -> None:
         """Write every run into a sub-folder named by its label (each with its own plot), and
