@@ -638,7 +638,8 @@ def acceptance(
 def _print_datasheet(result) -> None:
     if not _loud():
         return
-    from .analysis.datasheet import cell, unit_of
+    from .analysis.datasheet import cell
+    from .analysis.units import unit_of
 
     table = Table(title=f"{result.scenario.name}: acceptance datasheet")
     table.add_column("figure")

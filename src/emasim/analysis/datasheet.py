@@ -14,18 +14,8 @@ from matplotlib.figure import Figure
 from ..output import json_text
 from . import frequency as fr
 from .plots import save_figure
+from .units import unit_of
 
-UNITS = (  # suffix of a figure's name -> its unit, longest first
-    ("_N_per_mm", "N/mm"),
-    ("_mm_s", "mm/s"),
-    ("_rpm", "rpm"),
-    ("_Hz", "Hz"),
-    ("_dB", "dB"),
-    ("_mm", "mm"),
-    ("_N", "N"),
-    ("_A", "A"),
-    ("_J", "J"),
-)
 FIGURES = (
     (
         "bode.png",
@@ -44,10 +34,6 @@ FIGURES = (
         "Output against command over the slow triangle; the loop's width is the hysteresis.",
     ),
 )
-
-
-def unit_of(name: str) -> str:
-    return next((unit for suffix, unit in UNITS if name.endswith(suffix)), "")
 
 
 def cell(value) -> str:

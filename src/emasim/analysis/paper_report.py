@@ -12,6 +12,7 @@ The paper's numbers are in ``paper_results.toml`` beside this module (transcribe
 """
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -28,6 +29,7 @@ from .report import (
     RECOVERY_FRACTION,
     STEADY_FRACTION,
 )
+from .units import unit_of
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,8 @@ def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
         numeric = all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in (p_pid, p_hyb)
         )
+        if isinstance(p_pid, bool):  # a flag: ours as yes/no too, not 0/1
+            o_pid, o_hyb = (None if v is None else bool(v) for v in (o_pid, o_hyb))
         table.append(
             {
                 "metric": our_key,
@@ -133,7 +137,7 @@ def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
                 "ours_pid": o_pid,
                 "ours_hybrid": o_hyb,
                 "paper_reduction": reduction(p_pid, p_hyb) if numeric else None,
-                "ours_reduction": reduction(o_pid, o_hyb),
+                "ours_reduction": reduction(o_pid, o_hyb) if numeric else None,
             }
         )
     return table
@@ -298,6 +302,8 @@ def definitions() -> list[str]:
 
 
 def _fmt(value) -> str:
+    """A table cell: three significant figures, in fixed point from 1e-3 to 1e6 (1110, not
+    1.11e+03), '-' for none, yes/no for a flag."""
     if value is None:
         return "-"
     if isinstance(value, bool):
@@ -306,19 +312,28 @@ def _fmt(value) -> str:
         return value
     if not math.isfinite(value):
         return str(value)
-    return f"{value:.3g}"
+    if value == 0 or not 1e-3 <= abs(value) < 1e6:
+        return f"{value:.3g}"
+    decimals = max(0, 2 - math.floor(math.log10(abs(value))))
+    return f"{value:.{decimals}f}"
 
 
 def _pct(value) -> str:
     return "-" if value is None else f"{100 * value:.0f} %"
 
 
+NUMBER_CELL = re.compile(r"^([-+−]?[\d.]+(e[-+]?\d+)?( %)?|-|nan|inf|-inf)$")
+
+
 def markdown_table(header: list[str], rows: list[list]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += [
-        "| " + " | ".join(_fmt(c) if not isinstance(c, str) else c for c in row) + " |"
-        for row in rows
+    """A Markdown table; columns of numbers right-aligned, columns of text left-aligned."""
+    cells = [[_fmt(c) if not isinstance(c, str) else c for c in row] for row in rows]
+    numeric = [all(NUMBER_CELL.match(row[i]) for row in cells) for i in range(len(header))]
+    lines = [
+        "| " + " | ".join(header) + " |",
+        "|" + "".join("---:|" if n else ":---|" for n in numeric),
     ]
+    lines += ["| " + " | ".join(row) + " |" for row in cells]
     return "\n".join(lines)
 
 
@@ -350,8 +365,15 @@ def _bench_markdown(table: list[dict]) -> str:
 
 
 def _dict_rows_markdown(rows: list[dict]) -> str:
-    header = list(rows[0])
-    return markdown_table(header, [[_fmt(r[k]) for k in header] for r in rows])
+    """One row per entry; a table of controllers is transposed (a row per metric, with its
+    unit, a column per controller) so that it fits the page."""
+    if "controller" not in rows[0]:
+        header = list(rows[0])
+        return markdown_table(header, [[_fmt(r[k]) for k in header] for r in rows])
+    keys = list(dict.fromkeys(k for r in rows for k in r if k != "controller"))
+    header = ["metric", "unit", *(r["controller"] for r in rows)]
+    body = [[key, unit_of(key), *(_fmt(r.get(key)) for r in rows)] for key in keys]
+    return markdown_table(header, body)
 
 
 def _headline_markdown(items: dict) -> str:
@@ -478,8 +500,6 @@ def write_report(
     """report.md, report.html and tables.json into ``folder``; ``stages`` names and describes
     the ablation's stages, when ``tables`` has an ablation; ``uncertainty`` the --vary specs
     of the robustness study, when ``tables`` has its verdicts (``robustness``)."""
-    import markdown
-
     parts = [
         "# emasim reproduction of Ding & Zhou (2025)",
         f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "
@@ -520,7 +540,7 @@ def write_report(
             "Gains: "
             + (
                 f"tuned ({tuning['method']}; {tuning['trials_per_controller_set']} "
-                f"trials per controller set; cost {tuning['cost']})."
+                f"trials per controller set; cost `{tuning['cost']}`)."
                 if tuning
                 else "the scenario's defaults (not tuned)."
             )
@@ -546,17 +566,21 @@ def write_report(
     parts.append(notes)
     text = "\n\n".join(parts) + "\n"
     (folder / "report.md").write_text(text)
-    body = markdown.markdown(text, extensions=["tables"])
-    style = (
-        "body{font-family:sans-serif;max-width:70em;margin:auto}table{border-collapse:"
-        "collapse}td,th{border:1px solid #bbb;padding:2px 6px;text-align:right}"
-        "img{max-width:100%}"
-    )
-    (folder / "report.html").write_text(
-        f"<!doctype html><html><head><meta charset='utf-8'><title>emasim reproduction</title>"
-        f"<style>{style}</style></head><body>{body}</body></html>\n"
-    )
+    (folder / "report.html").write_text(report_html(text, "emasim reproduction"))
     (folder / "tables.json").write_text(json_text(tables))
+
+
+def report_html(markdown_text: str, title: str) -> str:
+    """The report's HTML: its Markdown (tables, code: a formula in backticks stays literal)
+    inside the Jinja2 page template ``report.html.j2``, the title escaped."""
+    import markdown
+    from jinja2 import Environment, select_autoescape
+
+    body = markdown.markdown(markdown_text, extensions=["tables"])
+    template = Environment(autoescape=select_autoescape(default=True)).from_string(
+        resources.files(__package__).joinpath("report.html.j2").read_text()
+    )
+    return template.render(title=title, body=body)
 
 
 NOTES_FILE = "reproduction_notes.md"

@@ -1,0 +1,49 @@
+"""The report's tables and page (emasim.analysis.paper_report), on known inputs: numbers in
+fixed point with three significant figures, text left and numbers right, controller tables
+transposed with their units, flags as yes/no on both sides, formulas kept literal, the page
+from its template with the title escaped."""
+
+from emasim.analysis import paper_report as pr
+
+
+def test_numbers_have_three_significant_figures_in_fixed_point():
+    assert [pr._fmt(v) for v in (1110.3, 0.0123, 4.8049, 12.0, 0.0)] == [
+        "1110",
+        "0.0123",
+        "4.80",
+        "12.0",
+        "0",
+    ]
+    assert pr._fmt(2.5e-5) == "2.5e-05" and pr._fmt(3.2e7) == "3.2e+07"
+    assert pr._fmt(None) == "-" and pr._fmt(True) == "yes"
+
+
+def test_tables_align_text_left_and_numbers_right():
+    table = pr.markdown_table(["metric", "unit", "PID"], [["rise_time_s", "s", 0.0123]])
+    assert table.splitlines()[1] == "|:---|:---|---:|"
+
+
+def test_a_controller_table_is_transposed_with_units():
+    rows = [
+        {"controller": "PI", "rise_time_s": 0.01, "load_dip_rpm": 1110.3},
+        {"controller": "SMC", "rise_time_s": 0.02, "load_dip_rpm": 900.0},
+    ]
+    lines = pr._dict_rows_markdown(rows).splitlines()
+    assert lines[0] == "| metric | unit | PI | SMC |"
+    assert lines[2] == "| rise_time_s | s | 0.0100 | 0.0200 |"
+    assert lines[3] == "| load_dip_rpm | rpm | 1110 | 900 |"
+
+
+def test_a_flag_reads_yes_or_no_on_both_sides():
+    paper = {pr.PID_LABEL: {"flag": True}, pr.HYBRID_LABEL: {"flag": False}}
+    ours = {pr.PID_LABEL: {"flag": 1.0}, pr.HYBRID_LABEL: {"flag": 0.0}}
+    (row,) = pr.bench_table(paper, ours, {"flag": ("flag", "yes/no")})
+    assert row["ours_pid"] is True and row["ours_hybrid"] is False
+    assert row["ours_reduction"] is None
+
+
+def test_the_page_keeps_formulas_literal_and_escapes_the_title():
+    html = pr.report_html("cost `IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max`", "a <b> & c")
+    assert "<code>IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max</code>" in html
+    assert "<em>" not in html
+    assert "<title>a &lt;b&gt; &amp; c</title>" in html
