@@ -39,7 +39,9 @@ positive when they oppose extension. Runs go through :func:`emasim.experiments.b
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -47,6 +49,9 @@ from ..analysis import frequency as fr
 from ..errors import InputError
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
 
 MM = 1e-3
 RPM_PER_RAD_S = 30.0 / math.pi
@@ -487,8 +492,8 @@ def run_acceptance(
     scenario: Scenario,
     labels: list[str] | None = None,
     battery: Battery | None = None,
-    client=None,
-    progress=None,
+    client: "Client | None" = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Acceptance:
     """Run the battery for each controller set of ``scenario`` (or those named in ``labels``)
     in parallel; ``progress(done, total)`` after each run."""

@@ -15,11 +15,18 @@ import logging
 import os
 import socket
 import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from ..errors import InputError
 from ..sim.cosim import check_fmu_trust
 from ..sim.result import Comparison, Result
 from .runs import meta_of, run_scenario
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
+    from ..scenarios.schema import Scenario
 
 CONNECT_TIMEOUT_S = 10
 
@@ -141,7 +148,12 @@ def _run(scenario, trust_fmu, label):
     return run_scenario(scenario, trust_fmu=trust_fmu, label=label)
 
 
-def run(scenario, progress=None, trust_fmu: bool = False, client=None) -> "Comparison | Result":
+def run(
+    scenario: "Scenario",
+    progress: Callable[[float], None] | None = None,
+    trust_fmu: bool = False,
+    client: "Client | None" = None,
+) -> Comparison | Result:
     """Run a scenario as the command line does: every controller set of its comparison in
     parallel (a :class:`~emasim.sim.result.Comparison`), or its one run (a Result) when it
     compares nothing (``load_scenario(..., label=...)`` picks one set). Both have ``metrics``,
@@ -151,7 +163,12 @@ def run(scenario, progress=None, trust_fmu: bool = False, client=None) -> "Compa
     return run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)
 
 
-def run_comparison(scenario, progress=None, trust_fmu: bool = False, client=None) -> Comparison:
+def run_comparison(
+    scenario: "Scenario",
+    progress: Callable[[float], None] | None = None,
+    trust_fmu: bool = False,
+    client: "Client | None" = None,
+) -> Comparison:
     """Run every controller set of ``scenario.compare`` (or its one set) on the experiment,
     in parallel (:func:`run_all`); ``progress`` is told the fraction of runs done. The meta's
     ``simulation_wall_s`` is the wall time of all the runs side by side, ``runs_wall_sum_s``
