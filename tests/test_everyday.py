@@ -186,3 +186,16 @@ def test_plots_name_the_run_zoom_on_its_events_and_share_compared_axes():
     n = len(bench.results)
     for row in (axes[:n], axes[n : 2 * n]):
         assert all(row[0].get_shared_y_axes().joined(row[0], other) for other in row[1:])
+
+
+def test_a_choice_over_a_cascade_named_in_the_file(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text(
+        'name = "c"\nduration_s = 0.05\ncontrollers = "hybrid"\n[plant]\npreset = "sea805"\n'
+        '[reference]\nposition_mm = [{ type = "step", final = 1.0 }]\n'
+    )
+    scenario = load_scenario(str(path), controllers=["speed=pi"])
+    assert scenario.controllers.speed.name == "pi"
+    assert scenario.controllers.position.name == "rbf-smc"  # the cascade's, kept
+    result = invoke("run", str(path), "-c", "speed=pi", "--label", "x")
+    assert result.exit_code == 2 and "no controller set" in result.output

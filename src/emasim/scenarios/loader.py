@@ -185,7 +185,13 @@ def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> 
     """Apply ``label`` and ``controllers`` to a raw scenario table (see :func:`load_scenario`)."""
     if label is None and not controllers:
         return
-    sets = {entry.get("label"): entry for entry in raw.pop("compare", []) or []}
+    entries = raw.pop("compare", [])
+    entries = entries if isinstance(entries, list) else []  # malformed: validation says so
+    sets = {entry.get("label"): entry for entry in entries if isinstance(entry, dict)}
+    if not isinstance(raw.get("tuning", {}), dict):
+        raise InputError("tuning: must be a table of key = value records")
+    if isinstance(raw.get("controllers"), str):  # controllers = "hybrid": a cascade's name
+        raw["controllers"] = {"cascade": raw["controllers"]}
     origin = []
     if label is not None:
         if label not in sets:
