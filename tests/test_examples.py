@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 EXAMPLES = Path(__file__).parents[1] / "examples"
+HANG_GUARD_S = 1800  # stops a hung example; not a speed check
 
 
 def run_example(name: str, folder: Path) -> str:
@@ -21,7 +22,7 @@ def run_example(name: str, folder: Path) -> str:
         cwd=folder,
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=HANG_GUARD_S,
     )
     assert done.returncode == 0, done.stderr
     return done.stdout
