@@ -17,10 +17,10 @@ Gains are in dB (20 log10 |H|), phases in degrees, unwrapped from the lowest fre
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike
+
+from .metrics import sine_basis
 
 
 def phasor(t: ArrayLike, y: ArrayLike, frequency_Hz: float) -> complex:
@@ -31,10 +31,8 @@ def phasor(t: ArrayLike, y: ArrayLike, frequency_Hz: float) -> complex:
         raise ValueError("phasor needs t and y of the same length, at least 4 samples")
     if not frequency_Hz > 0:
         raise ValueError(f"frequency_Hz must be > 0, got {frequency_Hz}")
-    w = 2.0 * math.pi * frequency_Hz
-    basis = np.column_stack((np.ones_like(t), np.cos(w * t), np.sin(w * t)))
-    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
-    return complex(coef[2], coef[1])
+    sine, cosine, _ = np.linalg.lstsq(sine_basis(t, frequency_Hz), y, rcond=None)[0]
+    return complex(sine, cosine)
 
 
 def response(t: ArrayLike, u: ArrayLike, y: ArrayLike, frequency_Hz: float) -> complex:

@@ -623,7 +623,7 @@ def total_variation_rate(t: ArrayLike, y: ArrayLike, window: Window = None) -> f
     return float(np.sum(np.abs(np.diff(yw))) / (tw[-1] - tw[0]))
 
 
-def _sine_basis(t: np.ndarray, frequency_Hz: float) -> np.ndarray:
+def sine_basis(t: np.ndarray, frequency_Hz: float) -> np.ndarray:
     """Columns sin(2 pi f t), cos(2 pi f t), 1 for a least-squares sine fit."""
     omega_t = 2.0 * np.pi * frequency_Hz * t
     return np.column_stack([np.sin(omega_t), np.cos(omega_t), np.ones_like(t)])
@@ -642,7 +642,7 @@ def sine_fluctuation(
     y = _signal("y", y, t)
     frequency_Hz = _positive("frequency_Hz", frequency_Hz)
     tw, yw = _windowed(t, window, y)
-    basis = _sine_basis(tw, frequency_Hz)
+    basis = sine_basis(tw, frequency_Hz)
     residual = yw - basis @ np.linalg.lstsq(basis, yw, rcond=None)[0]
     return float(np.ptp(residual) / 2.0)
 
@@ -689,7 +689,7 @@ def sine_tracking(
     reference = _signal("reference", reference, t)
     frequency_Hz = _positive("frequency_Hz", frequency_Hz)
     tw, yw, rw = _windowed(t, window, y, reference)
-    basis = _sine_basis(tw, frequency_Hz)
+    basis = sine_basis(tw, frequency_Hz)
     (a_y, a_r), (b_y, b_r), _ = np.linalg.lstsq(basis, np.column_stack([yw, rw]), rcond=None)[0]
     amplitude_ref = np.hypot(a_r, b_r)
     if amplitude_ref == 0.0:

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..analysis import frequency as fr
+from ..analysis.metrics import rise_time
 from ..errors import InputError
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
@@ -296,24 +297,12 @@ def measure_rate(scenario, drive, battery) -> dict:
     stroke's constant-rate part (first crossings, interpolated), and the motor's peak speed
     (rad/s: the drive limits the speed command, the speed loop may overshoot it)."""
     result = simulate(scenario.setup())
-    t, y = result.t, drive.output_m(result)
     travel = scenario.reference.position_mm[0].final * MM
-    t10, t90 = (_first_time(t, y, level * travel) for level in (0.1, 0.9))
+    rise = rise_time(result.t, drive.output_m(result), initial=0.0, final=travel)
     return {
-        "rate_m_s": 0.8 * travel / (t90 - t10) if t90 is not None else None,
+        "rate_m_s": 0.8 * travel / rise if math.isfinite(rise) else None,
         "peak_speed_rad_s": float(np.max(np.abs(result["motor_speed_rad_s"]))),
     }
-
-
-def _first_time(t, y, level):
-    """The first time y reaches level (rising), interpolated; None if it never does."""
-    above = np.flatnonzero(y >= level)
-    if above.size == 0:
-        return None
-    k = int(above[0])
-    if k == 0:
-        return float(t[0])
-    return float(t[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]))
 
 
 def stall_job(base, drive, battery):
@@ -338,17 +327,23 @@ def measure_stall(scenario, drive, battery) -> dict:
     chunk = max(1, round(STALL_CHUNK_S / setup.sample_period_s))
     limit = battery.stall_deflection_mm * MM
     start = scenario.load.rod_force_N[0].start_s
+    rest, checked = None, 0
     while run.tick < setup.n_ticks:
         run.advance(min(setup.n_ticks, run.tick + chunk))
         rows = run.tick // setup.record_every
         result = run.result()
-        t, y = result.t[:rows], drive.output_m(result)[:rows]
-        rest = np.mean(y[(t > 0.8 * start) & (t < start)]) if t[-1] > start else None
-        if rest is None:
+        t = result.t[:rows]
+        if t[-1] <= start:
             continue
+        if rest is None:  # once: where the output rests before the ramp
+            before = (t > 0.8 * start) & (t < start)
+            rest = float(np.mean(drive.output_m(result)[:rows][before]))
+            checked = int(np.searchsorted(t, start))
+        y = drive.output_m(result)[checked:rows]  # only the rows not checked yet
         pushed = np.flatnonzero(rest - y >= limit)
         if pushed.size:
-            return {"stall_force_N": float(result["rod_load_N"][pushed[0]])}
+            return {"stall_force_N": float(result["rod_load_N"][checked + pushed[0]])}
+        checked = rows
     return {"stall_force_N": None}
 
 

@@ -4,8 +4,8 @@ A scenario file must be UTF-8 TOML of at most MAX_FILE_BYTES, nested at most MAX
 with no control characters in its strings; anything else is refused with one line naming it.
 """
 
+import copy
 import difflib
-import json
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -197,7 +197,7 @@ def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> 
         if label not in sets:
             known = ", ".join(map(str, sets)) or "none: the scenario compares nothing"
             raise InputError(f"--label: {label!r} is no controller set of it; choose from: {known}")
-        raw["controllers"] = json.loads(json.dumps(sets[label].get("controllers", {})))
+        raw["controllers"] = copy.deepcopy(sets[label].get("controllers", {}))
         raw.setdefault("tuning", {})["controller_set"] = label
         origin.append(label)
     for choice in controllers:
@@ -206,7 +206,7 @@ def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> 
         for set_label, entry in sets.items():
             chosen = entry.get("controllers", {})
             if not name and chosen.get("cascade") == choice:  # a cascade: that set's loops
-                raw["controllers"] = json.loads(json.dumps(chosen))
+                raw["controllers"] = copy.deepcopy(chosen)
             elif name and isinstance(chosen.get(loop), dict) and chosen[loop].get("name") == name:
                 raw["controllers"][loop] = dict(chosen[loop])
             else:
