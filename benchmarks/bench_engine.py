@@ -19,7 +19,9 @@ a process of its own (MEMORY_S), once with every column and once recording only 
 the metrics and plots read (``solver.record_signals``). Batch: the study facility's
 throughput on one and on two worker processes (``bench_study.study_scaling``); beside it, the
 same runs' compiled loop alone (EngineRun.advance, the GIL released) on one and on two Python
-threads: the scaling this machine's two cores allow. Monte Carlo: the wall time of the 200-run
+threads: the scaling this machine's two cores allow; and the same runs in one ``prange`` batch
+kernel (``batch_kernel.py``) on one and on two of numba's threads, interleaved with them.
+Monte Carlo: the wall time of the 200-run
 bench-step robustness study of each controller set (``bench_study.monte_carlo_seconds``).
 FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``. Acceptance: the wall time
 of the whole battery on bench-step's two controller sets (``bench_acceptance.battery_figures``).
@@ -47,6 +49,7 @@ import threading
 import time
 from pathlib import Path
 
+import batch_kernel
 import bench_acceptance
 import bench_study
 import numba
@@ -247,11 +250,23 @@ def batch_scaling(runs: int, duration_s: float, repeats: int) -> dict:
         job.scenario.setup() for job in plan_study(bench_study.scaling_spec(runs, duration_s)).jobs
     ]
     core_seconds(setups[:1], 1)  # load compiled code
+    warm = batch_kernel.stack(setups[:2])
+    batch_kernel.run_stacked(warm, 2)  # compile the kernel
+    batch_kernel.check_against_plain(setups[:2], warm)
     core = {1: [], 2: []}
+    kernel = {1: [], 2: []}
     for _ in range(repeats):
         for threads in core:
             core[threads].append(core_seconds(setups, threads))
-    figures["core_speedup"] = statistics.median(core[1]) / statistics.median(core[2])
+            stacked = batch_kernel.stack(setups)
+            start = time.perf_counter()
+            batch_kernel.run_stacked(stacked, threads)
+            kernel[threads].append(time.perf_counter() - start)
+    core_s = {threads: statistics.median(times) for threads, times in core.items()}
+    kernel_s = {threads: statistics.median(times) for threads, times in kernel.items()}
+    figures["core_speedup"] = core_s[1] / core_s[2]
+    figures["prange_speedup"] = kernel_s[1] / kernel_s[2]
+    figures["prange_vs_threads"] = core_s[2] / kernel_s[2]  # above 1: the kernel is faster
     return figures
 
 
@@ -358,8 +373,11 @@ def report(results: dict) -> None:
     bench_study.report(results["batch"], results.get("monte_carlo"))
     if "acceptance" in results:
         bench_acceptance.report(results["acceptance"])
+    batch = results["batch"]
+    print(f"compiled loop alone, 1 against 2 threads: speed-up {batch['core_speedup']:.2f}")
     print(
-        f"compiled loop alone, 1 against 2 threads: speed-up {results['batch']['core_speedup']:.2f}"
+        f"prange batch kernel, 1 against 2 threads: speed-up {batch['prange_speedup']:.2f}; "
+        f"{batch['prange_vs_threads']:.2f}x the speed of 2 Python threads"
     )
     if "fmu" in results:
         fmu = results["fmu"]

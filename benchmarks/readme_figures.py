@@ -146,6 +146,16 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
                 f"speed-up {batch['core_speedup']:.2f}",
             )
         )
+        if "prange_speedup" in batch:
+            rows.append(
+                (
+                    "the same runs in one `prange` batch kernel (`benchmarks/batch_kernel.py`: "
+                    "one compiled call, numba's threads), 1 thread against 2",
+                    "median of 3 each, interleaved with the threads above",
+                    f"speed-up {batch['prange_speedup']:.2f}; on 2 threads "
+                    f"{batch['prange_vs_threads']:.2f}× the speed of 2 Python threads",
+                )
+            )
     battery = results.get("acceptance")
     if battery is not None:
         rows.append(

@@ -192,7 +192,15 @@ def plot_comparison(results: dict, title: str | None = None):
 
 
 def save_figure(figure, path, dpi: int = 110) -> None:
-    """Write a figure to a file (PNG by the path's suffix, through matplotlib's Agg canvas)."""
+    """Write a figure to a file (PNG by the path's suffix, through matplotlib's Agg canvas).
+
+    The data lines and the insets lie inside their axes, so the constrained layout need not
+    measure them: leaving them out draws the same pixels (compared on speed-step's figure) and
+    saves about a tenth of a second a figure, which was spent transforming every plotted point.
+    """
+    for ax in figure.axes:
+        for artist in (*ax.get_lines(), *ax.child_axes):
+            artist.set_in_layout(False)
     figure.savefig(path, dpi=dpi)
 
 
