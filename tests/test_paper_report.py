@@ -47,3 +47,30 @@ def test_the_page_keeps_formulas_literal_and_escapes_the_title():
     assert "<code>IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max</code>" in html
     assert "<em>" not in html
     assert "<title>a &lt;b&gt; &amp; c</title>" in html
+
+
+def test_the_gains_sentence_states_each_sets_search():
+    record = {
+        "method": "optuna TPE",
+        "budget": "at most 40 trials per knob",
+        "cost": "J",
+        "sets": {
+            "PID": {"trials": 57, "knobs": 3, "stopped": "converged"},
+            "hybrid": {
+                "trials": 320,
+                "knobs": 8,
+                "stopped": "budget",
+                "widened": {"speed.bandwidth_Hz": [1.25, 300.0]},
+                "on_bound": {"position.adaptation_gain": "upper"},
+            },
+        },
+    }
+    text = pr.tuning_sentence(record)
+    assert "PID 57 trials for 3 knobs (converged)" in text
+    assert (
+        "hybrid 320 trials for 8 knobs (budget; speed.bandwidth_Hz widened to [1.25, 300]" in text
+    )
+    assert "**optimum on the upper bound of position.adaptation_gain**" in text
+    old = {"method": "optuna TPE", "trials_per_controller_set": 60, "cost": "J"}
+    assert "60 trials per controller set" in pr.tuning_sentence(old)
+    assert pr.tuning_sentence({}) == "the scenario's defaults (not tuned)."

@@ -1,6 +1,7 @@
 """Fair tuning: one cost, one search, one budget for every controller set; resumable."""
 
 import json
+import time
 import tomllib
 
 import numpy as np
@@ -8,19 +9,25 @@ import optuna
 import pytest
 from typer.testing import CliRunner
 
+from emasim import tuning
 from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
 from emasim.cli import app
+from emasim.control.pid import SpeedPI
+from emasim.experiments.batch import dask_client
 from emasim.scenarios.loader import (
     load_scenario,
     read_scenario_file,
     read_scenario_text,
     validate_scenario,
 )
+from emasim.search_rules import WIDEN_FACTOR, Budget
 from emasim.sim.engine import simulate
 from emasim.tuning import (
     TUNED_HEADER,
+    _controllers_with,
     search_space,
     study_key,
+    trial_cost,
     tune_scenario,
     tune_variant,
     tuned_toml,
@@ -55,9 +62,8 @@ def test_search_space_covers_both_loops_of_a_cascade():
 def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_path):
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
     storage = f"sqlite:///{tmp_path / 'study.db'}"
-    tuned, best, given, study = tune_variant(
-        scenario, "PI", scenario.controllers, 4, storage, seed=1
-    )
+    result = tune_variant(scenario, "PI", scenario.controllers, 4, storage, seed=1)
+    tuned, best, given, study = result.controllers, result.best, result.given, result.study
     # the gains given: those of the comparison's PI set, which the choice starts from
     given_gain = scenario.controllers.speed.bandwidth_Hz
     assert (
@@ -67,7 +73,7 @@ def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_pat
     assert study.trials[0].params == {"speed.bandwidth_Hz": given_gain}
     assert given == study.trials[0].value and best <= given
     assert tuned.speed.bandwidth_Hz == pytest.approx(study.best_params["speed.bandwidth_Hz"])
-    *_, again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1)
+    again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1).study
     complete = [t for t in again.trials if t.state == optuna.trial.TrialState.COMPLETE]
     assert len(complete) == 6  # resumed: two more, not six more
 
@@ -78,15 +84,18 @@ def test_every_controller_set_gets_the_same_budget_and_the_file_records_it(tmp_p
     raw["load"] = {}
     scenario = validate_scenario(raw)
     storage = f"sqlite:///{tmp_path / 'study.db'}"
-    tuned_raw, costs = tune_scenario(raw, scenario, 3, storage)
-    assert list(costs) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
+    tuned_raw, results = tune_scenario(raw, scenario, 3, storage)
+    assert list(results) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
     for label, variant in scenario.variants():
         name = f"speed-step:{label}:{study_key(variant)}"
         study = optuna.load_study(study_name=name, storage=storage)
         assert len(study.trials) == 3
-        assert costs[label][1] <= costs[label][0]
+        assert results[label].best <= results[label].given
     tuned = validate_scenario(tuned_raw)
-    assert tuned.tuning["trials_per_controller_set"] == 3
+    assert tuned.tuning["budget"] == "3 trials per controller set"
+    assert {label: record.trials for label, record in tuned.tuning["sets"].items()} == {
+        label: 3 for label in results
+    }
     assert [v.controllers.speed.name for v in tuned.compare] == [
         "pi",
         "smc",
@@ -115,7 +124,10 @@ def test_tune_command_writes_a_valid_scenario(tmp_path):
     )
     assert result.exit_code == 0, result.output
     tuned = validate_scenario(tomllib.loads(save.read_text()))
-    assert tuned.controllers.speed.name == "adrc" and tuned.tuning
+    assert tuned.controllers.speed.name == "adrc"
+    record = tuned.tuning["sets"]["speed=adrc"]  # a single run: its controllers label
+    assert record.knobs == 2 and record.trials >= 2
+    assert tuned.tuning["budget"].startswith("2 trials per controller set")
 
 
 def test_the_tuned_file_keeps_the_scenario_files_comments_and_layout():
@@ -146,3 +158,85 @@ def test_tuning_reports_each_trial(tmp_path):
         progress=lambda done, total: seen.append((done, total)),
     )
     assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]
+
+
+def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path, monkeypatch):
+    """A range far below the speed loop's useful bandwidth (5-6 Hz): it is first stretched to
+    the gains given (the comparison's 70.5 Hz set, the first trial), where the optimum sits, on
+    the upper bound; that bound moves out by WIDEN_FACTOR, and the next round searches the wider
+    range with as many trials; a resumed study continues from its widened range without new
+    trials."""
+    monkeypatch.setattr(SpeedPI, "tunable_ranges", lambda self: {"bandwidth_Hz": (5.0, 6.0)})
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    storage = f"sqlite:///{tmp_path / 'study.db'}"
+    budget = Budget(trials=3, patience=None, widenings=2)
+    result = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
+    given = scenario.controllers.speed.bandwidth_Hz
+    rounds = result.study.user_attrs["widenings"]
+    low, high = result.widened["speed.bandwidth_Hz"]
+    assert rounds >= 1 and low == 5.0 and high == pytest.approx(given * WIDEN_FACTOR**rounds)
+    assert result.trials == 3 * (rounds + 1) and result.stopped == "budget"
+    highs = [t.distributions["speed.bandwidth_Hz"].high for t in result.study.trials]
+    assert highs[:3] == [given] * 3 and highs[3] == pytest.approx(given * WIDEN_FACTOR)
+    assert result.on_bound == {} or rounds == budget.widenings  # flagged only when out of rounds
+    again = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
+    assert again.trials == result.trials and again.widened == result.widened
+
+
+def test_the_search_stops_once_converged(tmp_path):
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    # a tolerance of 100 %: converged as soon as the patience has passed
+    budget = Budget(trials=50, patience=2, tolerance=1.0, widenings=0)
+    result = tune_variant(
+        scenario, "PI", scenario.controllers, budget, f"sqlite:///{tmp_path / 's.db'}"
+    )
+    assert result.trials == 3 and result.stopped == "converged"
+    assert result.record() == {"trials": 3, "knobs": 1, "stopped": "converged"}
+
+
+def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproducible(tmp_path):
+    """Two workers evaluate two trials at once through map_runs; told in trial order, the
+    same seed gives the same trials, and the costs equal a run of each in this process."""
+    scenario = load_scenario("position-step", controllers=["pid"], settings=SHORT)
+    searches = []
+    with dask_client(workers=2, processes=False) as client:
+        for k in range(2):
+            result = tune_variant(
+                scenario,
+                "PID",
+                scenario.controllers,
+                4,
+                f"sqlite:///{tmp_path / f'{k}.db'}",
+                3,
+                None,
+                client,
+            )
+            searches.append([(t.params, t.value) for t in result.study.trials])
+    assert searches[0] == searches[1] and len(searches[0]) == 4
+    params, value = searches[0][-1]
+    candidate = scenario.model_copy(
+        update={"controllers": _controllers_with(scenario.controllers, params)}
+    )
+    assert trial_cost(candidate, scenario.plant.motor.max_current_A) == value
+
+
+def test_a_killed_trial_is_asked_again_with_its_gains(tmp_path, monkeypatch):
+    """A trial left running by a killed process (its heartbeat stops) is failed once the
+    grace period has passed, and the next batch runs its gains again."""
+    monkeypatch.setattr(tuning, "HEARTBEAT_GRACE_S", 1)
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    url = f"sqlite:///{tmp_path / 's.db'}"
+    first = tune_variant(scenario, "PI", scenario.controllers, 1, url)
+    storage = tuning.open_storage(url)
+    study = optuna.load_study(study_name=first.study.study_name, storage=storage)
+    distributions = {"speed.bandwidth_Hz": optuna.distributions.FloatDistribution(5, 300, log=True)}
+    with pytest.warns(UserWarning, match="Heartbeat"):
+        killed = study.ask(distributions)
+    storage.record_heartbeat(killed._trial_id)
+    time.sleep(2.5)  # the heartbeat goes stale
+    later = tune_variant(scenario, "PI", scenario.controllers, 2, storage)
+    states = {t.number: t.state for t in later.study.trials}
+    assert states[killed.number] == optuna.trial.TrialState.FAIL
+    redone = [t for t in later.study.trials if t.number > killed.number]
+    assert redone[0].params == killed.params and redone[0].state.is_finished()
+    assert later.trials == 2

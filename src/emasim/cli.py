@@ -357,7 +357,41 @@ def tune(
         typer.Option("--controller", "-c", help="tune this choice instead of the comparison"),
     ] = None,
     setting: Annotated[list[str] | None, typer.Option("--set", "-s")] = None,
-    trials: Annotated[int, typer.Option(min=1, max=10000, help="runs per controller set")] = 40,
+    trials: Annotated[
+        int | None,
+        typer.Option(
+            min=1,
+            max=10000,
+            help="one trial count for every controller set, per round (default: "
+            "--trials-per-knob x its knobs)",
+        ),
+    ] = None,
+    trials_per_knob: Annotated[
+        int, typer.Option(min=1, max=10000, help="trials per knob of a set, per round")
+    ] = 40,
+    patience: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=10000,
+            help="stop a round once its best improved by less than --tolerance over this "
+            "many trials (0: never early)",
+        ),
+    ] = 20,
+    tolerance: Annotated[
+        float, typer.Option(min=0.0, max=1.0, help="relative improvement --patience asks for")
+    ] = 0.01,
+    widen: Annotated[
+        int,
+        typer.Option(min=0, max=20, help="times a bound the optimum sits on may be widened"),
+    ] = 3,
+    workers: Annotated[
+        int | None,
+        typer.Option(min=1, max=1024, help="trials at once (default: one per core, threads)"),
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="a Dask scheduler address to run the trials on")
+    ] = None,
     storage: Annotated[
         str | None,
         typer.Option(help="Optuna storage URL (default sqlite:///runs/tune/SCENARIO.db)"),
@@ -369,9 +403,11 @@ def tune(
     force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
     seed: Annotated[int, typer.Option(min=0, max=2**32 - 1, help="sampler seed")] = 0,
 ) -> None:
-    """Tune every controller set of a scenario with the same budget and cost (Optuna);
-    resumable (a study is keyed by the fully resolved scenario); writes the scenario with the
-    tuned gains."""
+    """Tune every controller set of a scenario under the same cost and rule (Optuna): trials
+    in proportion to its knobs, an early stop once converged, a range widened where the optimum
+    sits on its bound; resumable (a study is keyed by the fully resolved scenario); writes the
+    scenario with the tuned gains and a record of each set's search."""
+    from .experiments.batch import dask_client
     from .output import RUNS_ROOT, check_file, fresh_file, slug, write_file
     from .scenarios.loader import (
         apply_controller_choice,
@@ -380,7 +416,10 @@ def tune(
         read_scenario_text,
         validate_scenario,
     )
+    from .search_rules import Budget
     from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
+
+    budget = Budget(trials, trials_per_knob, patience or None, tolerance, widen)
 
     try:
         raw, source = read_scenario_file(scenario)
@@ -401,9 +440,15 @@ def tune(
         _fail(err)
     _notice_compile()
 
-    def report(label, before, after):
-        shown = "n/a (its trial was interrupted)" if before is None else f"{before:.5g}"
-        log.info(f"{label}: cost {shown} -> {after:.5g}")
+    def report(label, tuned):
+        shown = "n/a (its trial was interrupted)" if tuned.given is None else f"{tuned.given:.5g}"
+        bounds = "".join(
+            f"; optimum on the {side} bound of {key}" for key, side in tuned.on_bound.items()
+        )
+        log.info(
+            f"{label}: cost {shown} -> {tuned.best:.5g} in {tuned.trials} trials "
+            f"({len(tuned.study.best_params)} knobs, {tuned.stopped}){bounds}"
+        )
 
     bar, count = _runs_bar(f"tuning {sc.name}", unit="trials")
 
@@ -412,10 +457,8 @@ def tune(
         count(done, total)
 
     try:
-        with bar:
-            tuned, _ = tune_scenario(
-                raw, sc, trials, study_storage, seed, report=report, progress=progress
-            )
+        with bar, dask_client(scheduler, workers, processes=False) as client:
+            tuned, _ = tune_scenario(raw, sc, budget, study_storage, seed, report, progress, client)
         target = save or fresh_file(root, f"{slug(sc.name)}", ".toml")
         write_file(
             target,

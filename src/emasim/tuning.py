@@ -14,24 +14,38 @@ price on control chattering that wears the drive (:func:`emasim.analysis.report.
 which every run reports as its ``tuning_cost`` metric). A run that diverges costs
 DIVERGED_COST.
 
+How long a set is searched is a :class:`emasim.search_rules.Budget`: trials in proportion to
+its knobs (a fixed count for every set favours the one with fewer), an early stop once the best
+cost has stopped improving, and a range widened where the optimum sits on its bound. The tuned
+file's ``[tuning]`` record states the rule and, per set, the trials it used, why it stopped,
+the ranges widened and any optimum still on a bound. The trials of a batch run through the
+study facility (emasim.experiments.batch.map_runs), as many at once as the Dask client has
+workers, and are told to the sampler in trial order.
+
 Studies live in SQLite by default (any SQLAlchemy URL works). A study is named by the scenario,
 the label and a hash of the fully resolved single-run scenario (:func:`study_key`), so a changed
 plant, sensor, load or solver starts a new study, and an unchanged one resumes where it stopped.
-Trials send a heartbeat: a trial whose process was killed is failed once its heartbeat is
-HEARTBEAT_GRACE_S old and run again with the same gains, so a kill at any moment, during the
-first trial included, costs at most that trial. Several machines can share a study.
+Running trials send a heartbeat: a trial whose process was killed is failed once its heartbeat
+is HEARTBEAT_GRACE_S old and asked again with the same gains by the next batch, so a kill at any
+moment, during the first trial included, costs at most that batch. Several processes or
+machines can tune one study through a shared RDB storage (e.g. PostgreSQL), each asking and
+telling its own trials.
 """
 
+import contextlib
 import hashlib
 import json
 import sqlite3
+import threading
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import optuna
 
 from .analysis.report import tuning_cost
 from .errors import InputError, SimulationDiverged
+from .search_rules import Budget, bound_side, converged, hard_limits, widened
 from .sim.engine import simulate
 
 DIVERGED_COST = 1e3
@@ -166,29 +180,92 @@ def _plain(value):
     return value.unwrap() if hasattr(value, "unwrap") else value
 
 
+@dataclass
+class Tuned:
+    """One controller set's tuning: the tuned Controllers, the best cost, the cost of the gains
+    given (None while their trial is unfinished), the Optuna study, the trials completed, why
+    the last round stopped ("converged" or "budget"), the ranges widened (key -> (low, high))
+    and the knobs whose optimum still sits on a bound (key -> "lower" or "upper")."""
+
+    controllers: object
+    best: float
+    given: float | None
+    study: optuna.Study
+    trials: int
+    stopped: str
+    widened: dict[str, tuple[float, float]]
+    on_bound: dict[str, str]
+
+    def record(self) -> dict:
+        """The tuned file's record of this set ([tuning.sets.LABEL])."""
+        out = {"trials": self.trials, "knobs": len(self.study.best_params), "stopped": self.stopped}
+        if self.widened:
+            out["widened"] = {key: list(span) for key, span in self.widened.items()}
+        if self.on_bound:
+            out["on_bound"] = dict(self.on_bound)
+        return out
+
+
+def trial_cost(scenario, max_current: float) -> float:
+    """The tuning cost of one candidate (a single-run scenario); DIVERGED_COST if it diverges.
+    Module level, so that a Dask worker process can run it."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
+            result = simulate(scenario.setup())
+    except SimulationDiverged:
+        return DIVERGED_COST
+    return tuning_cost(result, max_current)
+
+
+@contextlib.contextmanager
+def _heartbeats(storage, trials):
+    """Tell the storage, every HEARTBEAT_S, that ``trials`` are alive while they run (the
+    ask-and-tell loop has no heartbeat thread of Optuna's own)."""
+    stop = threading.Event()
+
+    def beat():
+        while True:
+            for trial in trials:
+                storage.record_heartbeat(trial._trial_id)
+            if stop.wait(HEARTBEAT_S):
+                return
+
+    thread = threading.Thread(target=beat, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
+def _completed_values(study) -> list[float]:
+    complete = optuna.trial.TrialState.COMPLETE
+    return [t.value for t in sorted(study.trials, key=lambda t: t.number) if t.state == complete]
+
+
 def tune_variant(
-    scenario, label: str, controllers, trials: int, storage, seed: int = 0, progress=None
-):
-    """Tune one controller set on ``scenario``; returns (tuned Controllers, best cost, the cost
-    of the given gains or None while their trial is unfinished, study). ``storage`` is an
-    Optuna storage or URL (see :func:`open_storage`); ``progress(done, trials)`` is told the
-    finished trials after each one (a resumed study's earlier trials included)."""
-    space = search_space(controllers)
+    scenario,
+    label: str,
+    controllers,
+    budget: Budget | int,
+    storage,
+    seed: int = 0,
+    progress=None,
+    client=None,
+) -> Tuned:
+    """Tune one controller set on ``scenario`` under ``budget`` (emasim.search_rules; a bare
+    int is that many trials, no early stop, no widening). ``storage`` is an Optuna storage or
+    URL (:func:`open_storage`); ``progress(done, cap)`` is told the finished trials after each
+    batch (a resumed study's earlier trials included). The trials run through the study
+    facility's :func:`emasim.experiments.batch.map_runs`, as many at once as ``client`` has
+    workers (default: one, in this process); the sampler is told their costs in trial order,
+    so a seed gives the same search whatever the schedule."""
+    if isinstance(budget, int):
+        budget = Budget(trials=budget, patience=None, widenings=0)
+    base = search_space(controllers)
     max_current = scenario.plant.motor.max_current_A
-
-    def objective(trial: optuna.Trial) -> float:
-        values = {k: trial.suggest_float(k, lo, hi, log=True) for k, (lo, hi) in space.items()}
-        candidate = scenario.model_copy(
-            update={"controllers": _controllers_with(controllers, values), "compare": []}
-        )
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
-                result = simulate(candidate.setup())
-        except SimulationDiverged:
-            return DIVERGED_COST
-        return tuning_cost(result, max_current)
-
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     if isinstance(storage, str):
         storage = open_storage(storage)
@@ -199,66 +276,143 @@ def tune_variant(
         direction="minimize",
         sampler=optuna.samplers.TPESampler(seed=seed),
     )
+    start = {}
+    for key in base:
+        loop, field = key.split(".", 1)
+        value = getattr(getattr(controllers, loop), field)
+        if value is not None:
+            start[key] = float(value)
+            low, high = base[key]
+            base[key] = (min(low, start[key]), max(high, start[key]))  # the gains given included
     if not study.trials:
-        start = {}
-        for key in space:
-            loop, field = key.split(".", 1)
-            value = getattr(getattr(controllers, loop), field)
-            if value is not None:
-                start[key] = float(value)
         study.enqueue_trial(start, user_attrs={GIVEN: True})
-    complete = optuna.trial.TrialState.COMPLETE
-    done = sum(t.state == complete for t in study.trials)
-    callbacks = []
-    if progress is not None:
-        progress(min(done, trials), trials)
+    attrs = study.user_attrs
+    space = {key: tuple(span) for key, span in attrs.get("space", base).items()}
+    rounds, round_start = attrs.get("widenings", 0), attrs.get("round_start", 0)
+    batch = 1 if client is None else max(1, len(client.scheduler_info()["workers"]))
 
-        def told(study_now, _):
-            finished = sum(t.state == complete for t in study_now.trials)
-            progress(min(finished, trials), trials)
+    def evaluate(trials):
+        candidates = [
+            (
+                scenario.model_copy(
+                    update={
+                        "controllers": _controllers_with(controllers, trial.params),
+                        "compare": [],
+                    }
+                ),
+                max_current,
+            )
+            for trial in trials
+        ]
+        with _heartbeats(storage, trials):
+            if client is None:
+                return [trial_cost(*job) for job in candidates]
+            from .experiments.batch import map_runs
 
-        callbacks.append(told)
-    study.optimize(objective, n_trials=max(0, trials - done), callbacks=callbacks)
-    if not any(t.state == complete for t in study.trials):
+            return map_runs(trial_cost, candidates, client)
+
+    while True:
+        cap = budget.cap(len(space)) * (rounds + 1)
+        stopped = _search(study, space, cap, round_start, budget, batch, evaluate, progress)
+        best = study.best_params
+        sides = {key: bound_side(best[key], *space[key]) for key in space}
+        sides = {key: side for key, side in sides.items() if side is not None}
+        if not sides or rounds >= budget.widenings:
+            break
+        wider = dict(space)
+        for key, side in sides.items():
+            loop, field = key.split(".", 1)
+            wider[key] = widened(*space[key], side, hard_limits(getattr(controllers, loop), field))
+        if wider == space:  # every bound it sits on is a limit of the config itself
+            break
+        space, rounds, round_start = wider, rounds + 1, len(_completed_values(study))
+        study.set_user_attr("space", {key: list(span) for key, span in space.items()})
+        study.set_user_attr("widenings", rounds)
+        study.set_user_attr("round_start", round_start)
+    values = _completed_values(study)
+    if not values:
         raise InputError(f"tune {label}: no trial completed; raise --trials")
-    given = [t.value for t in study.trials if t.state == complete and t.user_attrs.get(GIVEN)]
-    tuned = _controllers_with(controllers, study.best_params)
-    return tuned, study.best_value, (given[0] if given else None), study
+    given = [t.value for t in study.trials if t.value is not None and t.user_attrs.get(GIVEN)]
+    return Tuned(
+        _controllers_with(controllers, study.best_params),
+        study.best_value,
+        given[0] if given else None,
+        study,
+        len(values),
+        stopped,
+        {key: span for key, span in space.items() if span != base[key]},
+        sides,
+    )
+
+
+def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -> str:
+    """Ask, run and tell trials over ``space`` until ``cap`` trials have completed ("budget")
+    or, ``budget.patience`` trials into this round, the search has converged ("converged")."""
+    distributions = {
+        k: optuna.distributions.FloatDistribution(*s, log=True) for k, s in space.items()
+    }
+    while True:
+        values = _completed_values(study)
+        if progress is not None:
+            progress(min(len(values), cap), cap)
+        if len(values) >= cap:
+            return "budget"
+        patience = budget.patience
+        if (
+            patience
+            and len(values) - round_start >= patience
+            and converged(values, patience, budget.tolerance)
+        ):
+            return "converged"
+        with warnings.catch_warnings():
+            # our own heartbeats (_heartbeats) stand in for those of Study.optimize
+            warnings.filterwarnings("ignore", message="Heartbeat of storage")
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            optuna.storages.fail_stale_trials(study)  # a killed run's trial: failed, re-asked
+            trials = [study.ask(distributions) for _ in range(min(batch, cap - len(values)))]
+        for trial, cost in zip(trials, evaluate(trials), strict=True):
+            study.tell(trial, cost)
 
 
 def tune_scenario(
     raw: dict,
     scenario,
-    trials: int,
+    budget: Budget | int,
     storage: str,
     seed: int = 0,
     report=None,
     progress=None,
+    client=None,
 ):
-    """Tune every controller set of a scenario with the same budget; return the raw scenario
-    table with the tuned gains written in, and label -> (cost before, cost after).
+    """Tune every controller set of a scenario under the same rule (``budget``, see
+    :func:`tune_variant`); return the raw scenario table with the tuned gains written in, and
+    label -> :class:`Tuned`.
 
     ``raw`` is the scenario file's table (as read, before validation); the tuned values are
-    written as overrides of each controller set, and a ``tuning`` record says how.
-    ``report(label, cost before, cost after)`` after each set, ``progress(label, done,
-    trials)`` after each trial.
+    written as overrides of each controller set, and a ``tuning`` record says how, with each
+    set's trials, why it stopped, the ranges widened and any optimum left on a bound.
+    ``report(label, tuned)`` after each set, ``progress(label, done, cap)`` after each batch.
     """
+    if isinstance(budget, int):
+        budget = Budget(trials=budget, patience=None, widenings=0)
     tuned_raw = dict(raw)
-    costs = {}
+    results = {}
     entries = list(tuned_raw["compare"]) if scenario.compare else None
     for i, (label, variant) in enumerate(scenario.variants()):
-        tuned, best, before, _ = tune_variant(
+        result = tune_variant(
             variant,
             label,
             variant.controllers,
-            trials,
+            budget,
             storage,
             seed,
             None if progress is None else lambda d, n, lb=label: progress(lb, d, n),
+            client,
         )
-        costs[label] = (before, best)
+        results[label] = result
         if report is not None:
-            report(label, *costs[label])
+            report(label, result)
+        tuned = result.controllers
         overrides = {
             loop: {"name": getattr(tuned, loop).name}
             | {
@@ -279,11 +433,12 @@ def tune_scenario(
     tuned_raw["tuning"] = {
         "method": "optuna TPE, log-uniform over each controller's tunable_ranges, "
         "first trial = the gains given",
-        "trials_per_controller_set": trials,
+        "budget": budget.describe(),
         "seed": seed,
         "cost": "IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max (emasim.tuning.tuning_cost)",
+        "sets": {label: result.record() for label, result in results.items()},
     }
-    return tuned_raw, costs
+    return tuned_raw, results
 
 
 def _with_overrides(section, overrides: dict) -> dict:

@@ -488,6 +488,36 @@ def _wear_markdown(degradation: dict, figures: list) -> list[str]:
     ]
 
 
+def tuning_sentence(tuning: dict | None) -> str:
+    """How an experiment's gains were obtained, from its scenario's ``[tuning]`` record: the
+    rule, and per controller set the trials it used, why it stopped, the ranges widened and
+    any optimum still on a bound (a record of an older emasim gives one trial count)."""
+    if not tuning:
+        return "the scenario's defaults (not tuned)."
+    if "sets" not in tuning:
+        return (
+            f"tuned ({tuning['method']}; {tuning['trials_per_controller_set']} "
+            f"trials per controller set; cost `{tuning['cost']}`)."
+        )
+    sets = []
+    for label, record in tuning["sets"].items():
+        text = f"{label} {record['trials']} trials for {record['knobs']} knobs ({record['stopped']}"
+        text += "".join(
+            f"; {key} widened to [{low:.4g}, {high:.4g}]"
+            for key, (low, high) in record.get("widened", {}).items()
+        )
+        text += "".join(
+            f"; **optimum on the {side} bound of {key}**"
+            for key, side in record.get("on_bound", {}).items()
+        )
+        sets.append(text + ")")
+    return (
+        f"tuned ({tuning['method']}; {tuning['budget']}; cost `{tuning['cost']}`): "
+        + ", ".join(sets)
+        + "."
+    )
+
+
 def write_report(
     folder: Path,
     tables: dict,
@@ -535,16 +565,7 @@ def write_report(
                 "hinge at the clearance shown):"
             )
             parts.append(_dict_rows_markdown(tables["clearance_sweep"]))
-        tuning = sc.get("tuning")
-        parts.append(
-            "Gains: "
-            + (
-                f"tuned ({tuning['method']}; {tuning['trials_per_controller_set']} "
-                f"trials per controller set; cost `{tuning['cost']}`)."
-                if tuning
-                else "the scenario's defaults (not tuned)."
-            )
-        )
+        parts.append("Gains: " + tuning_sentence(sc.get("tuning")))
     if tables.get("wear"):
         parts += _wear_markdown(tables["wear"], figures.get("wear", []))
     if tables.get("ablation"):

@@ -39,6 +39,20 @@ MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
 MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
 
 
+class TuningSet(Strict):
+    """One controller set's search, as ``emasim tune`` records it (emasim.tuning.Tuned)."""
+
+    trials: int = Field(ge=0, description="trials completed")
+    knobs: int = Field(ge=0, description="knobs searched")
+    stopped: Literal["converged", "budget"]
+    widened: dict[str, tuple[float, float]] = Field(
+        default={}, description="knob -> the search range it ended with, where widened"
+    )
+    on_bound: dict[str, Literal["lower", "upper"]] = Field(
+        default={}, description="knob -> the bound its optimum still sits on"
+    )
+
+
 class Solver(Strict):
     """Sample period of the controllers, integration sub-step, and recording period."""
 
@@ -317,8 +331,10 @@ class Scenario(Strict):
     reference: Reference
     load: Load = Load()
     compare: list[Variant] = []
-    tuning: dict[str, str | int | float] = Field(
-        default={}, description="how the gains were obtained (written by emasim tune)"
+    tuning: dict[str, str | int | float | dict[str, TuningSet]] = Field(
+        default={},
+        description="how the gains were obtained (written by emasim tune); 'sets' holds each "
+        "controller set's search",
     )
 
     @model_validator(mode="before")

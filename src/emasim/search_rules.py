@@ -1,0 +1,99 @@
+"""When a tuning search stops and where it looks: the budget, convergence and bound widening.
+
+A controller set with more knobs needs more trials, so a fixed trial count for every set
+favours the one with fewer knobs. :class:`Budget` gives each set
+
+* a cap of ``trials_per_knob`` x its number of knobs (or one fixed ``trials`` for all), and
+* an early stop once converged: the best cost of the last ``patience`` trials is less than
+  ``tolerance`` (relative) below the best before them (:func:`converged`).
+
+An optimum that sits on a bound of its search range (:func:`bound_side`: within BOUND_MARGIN
+of the range's log width) says the range was too narrow. The range is widened on that side by
+WIDEN_FACTOR, as far as the config's own validation allows (:func:`hard_limits`), and the
+search goes on for another round under the same rule, at most ``widenings`` times. An optimum
+still on a bound after that is reported.
+"""
+
+import math
+from dataclasses import dataclass
+
+BOUND_MARGIN = 0.02  # an optimum this close to a bound, as a fraction of the log range, is on it
+WIDEN_FACTOR = 4.0  # a bound the optimum sits on moves out by this factor
+
+
+@dataclass(frozen=True)
+class Budget:
+    """How long each controller set is searched (module docstring). ``trials``: one count for
+    every set, per round; else ``trials_per_knob`` x knobs. ``patience``: stop a round early
+    once the last ``patience`` trials improved the best by less than ``tolerance`` (None: never
+    early). ``widenings``: rounds of widening a bound the optimum sits on."""
+
+    trials: int | None = None
+    trials_per_knob: int = 40
+    patience: int | None = 20
+    tolerance: float = 0.01
+    widenings: int = 3
+
+    def cap(self, knobs: int) -> int:
+        """The trials of one round for a set with ``knobs`` knobs."""
+        return self.trials if self.trials is not None else self.trials_per_knob * knobs
+
+    def describe(self) -> str:
+        """The rule in words, for the tuned file's record and the report."""
+        cap = (
+            f"{self.trials} trials per controller set"
+            if self.trials is not None
+            else f"at most {self.trials_per_knob} trials per knob"
+        )
+        early = (
+            f", stopped once the best cost improved by less than {self.tolerance:.0%} over the "
+            f"last {self.patience} trials"
+            if self.patience
+            else ""
+        )
+        widen = (
+            f"; an optimum on a bound widens it x{WIDEN_FACTOR:g} and the search goes on "
+            f"(at most {self.widenings} times)"
+            if self.widenings
+            else ""
+        )
+        return cap + early + widen
+
+
+def converged(values: list[float], patience: int, tolerance: float) -> bool:
+    """True when the best of ``values`` (costs in trial order) is less than ``tolerance``
+    (relative) below the best of all but the last ``patience`` of them."""
+    if patience < 1 or len(values) <= patience:
+        return False
+    before, now = min(values[:-patience]), min(values)
+    return before - now <= tolerance * abs(before)
+
+
+def bound_side(value: float, low: float, high: float) -> str | None:
+    """'lower' or 'upper' when ``value`` lies within BOUND_MARGIN of that bound of the log
+    range [low, high], else None."""
+    where = (math.log(value) - math.log(low)) / (math.log(high) - math.log(low))
+    if where <= BOUND_MARGIN:
+        return "lower"
+    if where >= 1.0 - BOUND_MARGIN:
+        return "upper"
+    return None
+
+
+def hard_limits(config, field: str) -> tuple[float, float]:
+    """The open interval a config field's validation admits (its gt/ge and lt/le), as
+    (lower, upper); a log search needs lower > 0."""
+    low, high = 0.0, math.inf
+    for rule in type(config).model_fields[field].metadata:
+        low = max(low, getattr(rule, "gt", None) or getattr(rule, "ge", None) or low)
+        high = min(high, getattr(rule, "lt", None) or getattr(rule, "le", None) or high)
+    return low, high
+
+
+def widened(low: float, high: float, side: str, limits: tuple[float, float]):
+    """The range with ``side`` moved out by WIDEN_FACTOR, kept inside ``limits`` (the lower
+    bound strictly above a zero or exclusive limit)."""
+    lower_limit, upper_limit = limits
+    if side == "lower":
+        return max(low / WIDEN_FACTOR, lower_limit * (1.0 + 1e-9), math.nextafter(0.0, 1.0)), high
+    return low, min(high * WIDEN_FACTOR, upper_limit)
