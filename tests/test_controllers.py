@@ -8,8 +8,8 @@ import pytest
 from pydantic import ValidationError
 from scipy.signal import lfilter
 
-from emasim.control.pid import KAW, PositionPID, pack_pid
-from emasim.interface import M_POSITION, M_SPEED, N_MEAS
+from emasim.control.pid import KAW, PositionPID, pack_pid, pid
+from emasim.interface import M_POSITION, M_SPEED, N_MEAS, N_OUT, N_REF, O_VALUE, R_VALUE
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
 
@@ -142,3 +142,24 @@ def test_current_loop_matches_its_discrete_closed_loop():
     lag = 10.0 * (1 - np.exp(-alpha * result.t))
     assert np.max(np.abs(result["iq_A"] - lag)) < 1.0  # sampled at alpha Ts = 0.31
     assert np.max(np.abs(result["id_A"])) < 1e-9
+
+
+def test_the_derivative_on_the_error_kicks_at_a_set_point_step_and_the_measurements_does_not():
+    """The PID law driven directly: measurement held at 0, a unit set-point step at the second
+    sample. On the error, D jumps by Kd / (Tf + Ts) and decays by Tf / (Tf + Ts) a sample (the
+    backward-Euler filter); on the measurement it stays 0 and the output is Kp e + I alone."""
+    kp, ki, kd, tf, ts = 2.0, 0.0, 0.3, 2e-3, 1e-4
+    outputs = {}
+    for weight in (0.0, 1.0):
+        compiled = pack_pid(kp, ki, kd, tf, 1e9, 0.0, M_POSITION, derivative_weight=weight)
+        state, meas, out = compiled.state.copy(), np.zeros(N_MEAS), np.zeros(N_OUT)
+        seen = []
+        for r in (0.0, 1.0, 1.0, 1.0):
+            ref = np.zeros(N_REF)
+            ref[R_VALUE] = r
+            pid(state, compiled.params, meas, ref, ts, out)
+            seen.append(out[O_VALUE])
+        outputs[weight] = np.array(seen)
+    np.testing.assert_array_equal(outputs[0.0], [0.0, kp, kp, kp])
+    kick = kd / (tf + ts) * (tf / (tf + ts)) ** np.arange(3)
+    np.testing.assert_allclose(outputs[1.0], [0.0, *(kp + kick)], rtol=1e-12)

@@ -106,6 +106,16 @@ POSITION_CASES = {
     ),
     # the compliance, the anchorage and the rudder shaft's torsion (~10 Hz)
     "pid-elements-rod": (["position=pid", "speed=pi"], [NO_FEED_FORWARD, *ELEMENTS]),
+    # the textbook PID: the derivative on the error, whose set-point path adds a zero; a large
+    # Kd so that the path shows
+    "pid-derivative-on-error": (
+        ["position=pid", "speed=pi"],
+        [
+            NO_FEED_FORWARD,
+            "controllers.position.derivative_on='error'",
+            "controllers.position.kd=0.5",
+        ],
+    ),
 }
 
 

@@ -294,13 +294,14 @@ def _pid(
     params: np.ndarray, ref: str, measured: str, command: str, name: str
 ) -> control.StateSpace:
     """The law of emasim.control.pid.pid in continuous time: inputs (ref, its rate and its
-    acceleration, the measurement), outputs (command, its rate). The filtered derivative on
-    the measurement, -Kd s / (1 + Tf s) y, is -Kd/Tf y + xi with Tf dxi/dt = Kd/Tf y - xi."""
-    kp, ki, kd, tf, kff = params[[pid.KP, pid.KI, pid.KD, pid.TF, pid.KFF]]
+    acceleration, the measurement), outputs (command, its rate). The filtered derivative of
+    v = c r - y (c the set-point weight), Kd s / (1 + Tf s) v, is Kd/Tf v + xi with
+    Tf dxi/dt = -Kd/Tf v - xi."""
+    kp, ki, kd, tf, kff, w = params[[pid.KP, pid.KI, pid.KD, pid.TF, pid.KFF, pid.D_WEIGHT]]
     a = [[0.0, 0.0], [0.0, -1.0 / tf]]
-    b = [[ki, 0.0, 0.0, -ki], [0.0, 0.0, 0.0, kd / tf**2]]
+    b = [[ki, 0.0, 0.0, -ki], [-w * kd / tf**2, 0.0, 0.0, kd / tf**2]]
     c = [[1.0, 1.0], [0.0, 0.0]]
-    d = [[kp, kff, 0.0, -kp - kd / tf], [0.0, 0.0, kff, 0.0]]
+    d = [[kp + w * kd / tf, kff, 0.0, -kp - kd / tf], [0.0, 0.0, kff, 0.0]]
     states = ["integral", "derivative"]
     if kd == 0.0:  # a PI: no derivative state
         a, b, c, states = [[0.0]], [b[0]], [[1.0], [0.0]], states[:1]

@@ -1,9 +1,14 @@
-"""PI / PID with filtered derivative on the measurement, feed-forward and anti-windup.
+"""PI / PID with filtered derivative, feed-forward and anti-windup.
 
     e      = r - y
     u      = Kp e + I + D + Kff dr/dt,     u_sat = clamp(u, u_min, u_max)
-    D(s)   = -Kd s / (1 + Tf s) Y(s)       (backward Euler: no derivative kick on set-point steps)
+    D(s)   = Kd s / (1 + Tf s) (c R(s) - Y(s))      (backward Euler)
     dI/dt  = Ki e + Kaw (u_sat - u)        (back-calculation with the realised output)
+
+The derivative's set-point weight c (Astrom & Hagglund's two-degree-of-freedom PID) is 0 for
+the derivative on the measurement, the industrial default: a set-point step gives no
+derivative kick; and 1 for the textbook derivative on the error, which kicks by
+Kd dr / (Tf + Ts) at the step.
 
 One compiled law serves the speed loop (y = motor speed, u = iq*) and the position loop
 (y = rod position, u = motor speed command). The configs below choose the gains from a
@@ -23,23 +28,25 @@ from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R
 from ..numerics import clamp
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
-KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW = range(9)
-N_PARAMS = 9
-INTEGRAL, DERIVATIVE, Y_PREV, STARTED = range(4)
+KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW, D_WEIGHT = range(10)
+N_PARAMS = 10
+INTEGRAL, DERIVATIVE, V_PREV, STARTED = range(4)  # V_PREV: the derivative's last input
 N_STATE = 4
 
 
 @controller_law
 def pid(state, params, meas, ref, ts, out):
-    """PID law of the module docstring; params and state laid out by KP..KAW, INTEGRAL..STARTED."""
+    """PID law of the module docstring; params and state laid out by KP..D_WEIGHT,
+    INTEGRAL..STARTED."""
     y = meas[int(params[CHANNEL])]
+    v = params[D_WEIGHT] * ref[R_VALUE] - y  # the derivative's input, c r - y
     if state[STARTED] == 0.0:
-        state[Y_PREV] = y
+        state[V_PREV] = v
         state[STARTED] = 1.0
     e = ref[R_VALUE] - y
     tf = params[TF]
-    state[DERIVATIVE] = (tf * state[DERIVATIVE] - params[KD] * (y - state[Y_PREV])) / (tf + ts)
-    state[Y_PREV] = y
+    state[DERIVATIVE] = (tf * state[DERIVATIVE] + params[KD] * (v - state[V_PREV])) / (tf + ts)
+    state[V_PREV] = v
     u = params[KP] * e + state[INTEGRAL] + state[DERIVATIVE] + params[KFF] * ref[R_RATE]
     u_sat = clamp(u, params[U_MIN], params[U_MAX])
     state[INTEGRAL] += ts * (params[KI] * e + params[KAW] * (u_sat - u))
@@ -47,13 +54,17 @@ def pid(state, params, meas, ref, ts, out):
     out[O_RATE] = params[KFF] * ref[R_ACCEL]
 
 
-def pack_pid(kp, ki, kd, tf, limit, kff, channel, commands="current") -> Compiled:
-    """Parameter array and zero state of :func:`pid`; anti-windup gain Kaw = Ki/Kp (Tt = Ti)."""
+def pack_pid(
+    kp, ki, kd, tf, limit, kff, channel, commands="current", derivative_weight=0.0
+) -> Compiled:
+    """Parameter array and zero state of :func:`pid`; anti-windup gain Kaw = Ki/Kp (Tt = Ti);
+    ``derivative_weight`` is the set-point weight c of the derivative (module docstring)."""
     params = np.zeros(N_PARAMS)
     params[KP], params[KI], params[KD], params[TF] = kp, ki, kd, tf
     params[U_MIN], params[U_MAX] = -limit, limit
     params[KFF], params[CHANNEL] = kff, channel
     params[KAW] = ki / kp if kp > 0 else 0.0
+    params[D_WEIGHT] = derivative_weight
     return Compiled(pid, params, np.zeros(N_STATE), commands)
 
 
@@ -104,6 +115,11 @@ class PositionPID(ControllerConfig):
     ki_per_s2: float | None = Field(default=None, ge=0, le=1e9, description="overrides bandwidth")
     derivative_filter_s: float = Field(default=2e-3, gt=0, le=1.0, description="Tf of the D term")
     velocity_feedforward: bool = Field(default=True, description="add dx_ref/dt / K")
+    derivative_on: Literal["measurement", "error"] = Field(
+        default="measurement",
+        description="the D term's input: the measurement (no kick on set-point steps) or the "
+        "error (the textbook PID)",
+    )
 
     @model_validator(mode="after")
     def _no_derivative_in_pi(self):
@@ -127,6 +143,7 @@ class PositionPID(ControllerConfig):
             kff,
             M_POSITION,
             commands="speed",
+            derivative_weight=1.0 if self.derivative_on == "error" else 0.0,
         )
 
     def tunable_ranges(self):
