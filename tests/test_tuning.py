@@ -191,7 +191,21 @@ def test_the_search_stops_once_converged(tmp_path):
         scenario, "PI", scenario.controllers, budget, f"sqlite:///{tmp_path / 's.db'}"
     )
     assert result.trials == 3 and result.stopped == "converged"
-    assert result.record() == {"trials": 3, "knobs": 1, "stopped": "converged"}
+    record = result.record()
+    assert {k: record[k] for k in ("trials", "knobs", "stopped")} == {
+        "trials": 3,
+        "knobs": 1,
+        "stopped": "converged",
+    }
+    # the front: the trials' (chattering, tracking), none beaten on both by another
+    points = [(t.user_attrs["chatter"], t.user_attrs["tracking"]) for t in result.study.trials]
+    front = record["front"]
+    assert front and all(
+        list(p) in front or any(q[0] <= p[0] and q[1] <= p[1] for q in front) for p in points
+    )
+    assert record["tuned_point"] in front
+    best = result.study.best_trial
+    assert best.value == best.user_attrs["tracking"] + CHATTER_WEIGHT * best.user_attrs["chatter"]
 
 
 def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproducible(tmp_path):
@@ -217,7 +231,7 @@ def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproduci
     candidate = scenario.model_copy(
         update={"controllers": _controllers_with(scenario.controllers, params)}
     )
-    assert trial_cost(candidate, scenario.plant.motor.max_current_A) == value
+    assert trial_cost(candidate, scenario.plant.motor.max_current_A)[0] == value
 
 
 def test_a_killed_trial_is_asked_again_with_its_gains(tmp_path, monkeypatch):

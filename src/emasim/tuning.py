@@ -35,6 +35,7 @@ telling its own trials.
 import contextlib
 import hashlib
 import json
+import math
 import sqlite3
 import threading
 import warnings
@@ -43,7 +44,8 @@ from pathlib import Path
 
 import optuna
 
-from .analysis.report import tuning_cost
+from .analysis.pareto import pareto_front, thinned
+from .analysis.report import CHATTER_WEIGHT, tuning_terms
 from .errors import InputError, SimulationDiverged
 from .search_rules import Budget, bound_side, converged, hard_limits, widened
 from .sim.engine import simulate
@@ -53,6 +55,7 @@ LOOPS = ("position", "speed")
 HEARTBEAT_S = 1  # a running trial tells the storage it is alive this often
 HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
 GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
+TRACKING, CHATTER = "tracking", "chatter"  # user attributes: a trial's two cost terms
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
 
 
@@ -196,9 +199,25 @@ class Tuned:
     widened: dict[str, tuple[float, float]]
     on_bound: dict[str, str]
 
+    def front(self) -> list[tuple[float, float]]:
+        """The (chattering, tracking) Pareto front of the completed trials (analysis.pareto)."""
+        complete = optuna.trial.TrialState.COMPLETE
+        return pareto_front(
+            [
+                (t.user_attrs[CHATTER], t.user_attrs[TRACKING])
+                for t in self.study.trials
+                if t.state == complete and CHATTER in t.user_attrs
+            ]
+        )
+
     def record(self) -> dict:
-        """The tuned file's record of this set ([tuning.sets.LABEL])."""
+        """The tuned file's record of this set ([tuning.sets.LABEL]): its search, its tuned
+        point's two cost terms and its front (thinned to MAX_FRONT_POINTS)."""
         out = {"trials": self.trials, "knobs": len(self.study.best_params), "stopped": self.stopped}
+        best = self.study.best_trial.user_attrs
+        if CHATTER in best:
+            out["tuned_point"] = [best[CHATTER], best[TRACKING]]
+            out["front"] = [list(point) for point in thinned(self.front())]
         if self.widened:
             out["widened"] = {key: list(span) for key, span in self.widened.items()}
         if self.on_bound:
@@ -206,16 +225,18 @@ class Tuned:
         return out
 
 
-def trial_cost(scenario, max_current: float) -> float:
-    """The tuning cost of one candidate (a single-run scenario); DIVERGED_COST if it diverges.
-    Module level, so that a Dask worker process can run it."""
+def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
+    """The tuning cost of one candidate (a single-run scenario) and its two terms (tracking,
+    chattering: emasim.analysis.report.tuning_terms); DIVERGED_COST and NaN terms if it
+    diverges. Module level, so that a Dask worker process can run it."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
             result = simulate(scenario.setup())
     except SimulationDiverged:
-        return DIVERGED_COST
-    return tuning_cost(result, max_current)
+        return DIVERGED_COST, math.nan, math.nan
+    tracking, chatter = tuning_terms(result, max_current)
+    return tracking + CHATTER_WEIGHT * chatter, tracking, chatter
 
 
 @contextlib.contextmanager
@@ -370,7 +391,9 @@ def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             optuna.storages.fail_stale_trials(study)  # a killed run's trial: failed, re-asked
             trials = [study.ask(distributions) for _ in range(min(batch, cap - len(values)))]
-        for trial, cost in zip(trials, evaluate(trials), strict=True):
+        for trial, (cost, tracking, chatter) in zip(trials, evaluate(trials), strict=True):
+            trial.set_user_attr(TRACKING, tracking)
+            trial.set_user_attr(CHATTER, chatter)
             study.tell(trial, cost)
 
 

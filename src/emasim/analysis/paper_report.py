@@ -20,6 +20,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..output import json_text
+from .pareto import equal_chatter_table
 from .report import (
     BENCH_SETTLING_BAND,
     BENCH_STEADY_S,
@@ -488,6 +489,36 @@ def _wear_markdown(degradation: dict, figures: list) -> list[str]:
     ]
 
 
+def fronts_of(tuning: dict | None) -> dict:
+    """label -> [tuning.sets] record, for the sets whose record has a Pareto front."""
+    sets = (tuning or {}).get("sets", {})
+    return {label: record for label, record in sets.items() if record.get("front")}
+
+
+def pareto_markdown(tuning: dict | None) -> list[str]:
+    """The controller sets compared at equal chattering, from their tuning fronts
+    (emasim.analysis.pareto): at each set's tuned chattering, the best tracking every set
+    reaches without chattering more; nothing for a record without fronts."""
+    sets = fronts_of(tuning)
+    if len(sets) < 2:
+        return []
+    rows = equal_chatter_table(
+        {label: record["front"] for label, record in sets.items()},
+        {label: record["tuned_point"][0] for label, record in sets.items()},
+    )
+    header = ["at the chattering of", "chattering (1/s)", *(f"{label} tracking" for label in sets)]
+    body = [
+        [row["at the chattering of"], _fmt(row["chatter"]), *(_fmt(row[label]) for label in sets)]
+        for row in rows
+    ]
+    return [
+        "Tracking at equal chattering (each set's Pareto front of its tuning trials; a dash: "
+        "no trial of that set chatters so little). The tuned points weigh the two terms with "
+        "one weight; the front shows every weight.",
+        markdown_table(header, body),
+    ]
+
+
 def tuning_sentence(tuning: dict | None) -> str:
     """How an experiment's gains were obtained, from its scenario's ``[tuning]`` record: the
     rule, and per controller set the trials it used, why it stopped, the ranges widened and
@@ -566,6 +597,7 @@ def write_report(
             )
             parts.append(_dict_rows_markdown(tables["clearance_sweep"]))
         parts.append("Gains: " + tuning_sentence(sc.get("tuning")))
+        parts += pareto_markdown(sc.get("tuning"))
     if tables.get("wear"):
         parts += _wear_markdown(tables["wear"], figures.get("wear", []))
     if tables.get("ablation"):

@@ -248,6 +248,25 @@ def plot_clearance_sweep(rows: list[dict]):
     return fig
 
 
+def plot_pareto(sets: dict):
+    """Each controller set's front of tracking against chattering (its tuning trials that no
+    other trial beats on both: emasim.analysis.pareto), its tuned point marked. ``sets``:
+    label -> its [tuning.sets] record (``front``, ``tuned_point``)."""
+    fig = Figure(figsize=(7, 4), layout="constrained")
+    ax = fig.subplots()
+    for label, record in sets.items():
+        chatter, tracking = zip(*record["front"], strict=True)
+        (line,) = ax.step(chatter, tracking, "o-", where="post", ms=3, label=f"{label}: front")
+        ax.plot(*record["tuned_point"], "*", ms=12, color=line.get_color(), label=f"{label}: tuned")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("chattering TV(iq*) / I_max (1/s)")
+    ax.set_ylabel("tracking IAE / (T max|ref|)")
+    ax.grid(True, which="both", alpha=0.3)
+    _legend(ax)
+    return fig
+
+
 STUDY_COLUMNS = 4
 
 

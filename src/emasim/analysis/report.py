@@ -168,6 +168,13 @@ def tuning_cost(result, max_current_A: float) -> float:
     J = IAE / (T * max|ref|) + CHATTER_WEIGHT * TV(iq*) / I_max, on the loop the reference
     drives (speed, or rod position), TV(iq*) the total variation per second of the current
     command (A/s) and I_max the drive's current limit (A)."""
+    tracking, chatter = tuning_terms(result, max_current_A)
+    return tracking + CHATTER_WEIGHT * chatter
+
+
+def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
+    """The two terms of :func:`tuning_cost`: tracking IAE / (T * max|ref|) (dimensionless) and
+    chattering TV(iq*) / I_max (1/s), before the weight."""
     t = result.t
     if result.outer_loop == "position":
         reference, output = result["position_ref_m"], result["actuator_position_m"]
@@ -176,7 +183,7 @@ def tuning_cost(result, max_current_A: float) -> float:
     scale = (t[-1] - t[0]) * max(float(np.max(np.abs(reference))), 1e-12)
     tracking = m.integral_absolute_error(t, reference - output) / scale
     chatter = m.total_variation_rate(t, result["iq_ref_A"]) / max_current_A
-    return tracking + CHATTER_WEIGHT * chatter
+    return tracking, chatter
 
 
 def _row_period(t: np.ndarray) -> float:

@@ -9,6 +9,7 @@ from ..analysis.paper_report import (
     SWEEP_CLEARANCES_MM,
     ablation_rows,
     build_tables,
+    fronts_of,
     notes,
     write_report,
 )
@@ -73,6 +74,7 @@ def reproduce(
         plot_bench,
         plot_clearance_sweep,
         plot_comparison,
+        plot_pareto,
         plot_wear,
         save_figure,
     )
@@ -121,6 +123,11 @@ def reproduce(
             path = f"figures/{name}.png"
             save_figure(fig, folder / path)
             figures[name] = [(name, path)]
+            fronts = fronts_of(comparison.scenario.get("tuning"))
+            if len(fronts) > 1:
+                path = f"figures/{name}-pareto.png"
+                save_figure(plot_pareto(fronts), folder / path)
+                figures[name].append(("tracking against chattering", path))
         if "wear" in tables:
             save_figure(plot_wear(tables["wear"]), folder / "figures/wear.png")
             figures["wear"] = [("wear", "figures/wear.png")]

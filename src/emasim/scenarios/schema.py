@@ -10,7 +10,7 @@ of a :class:`emasim.sim.setup.Setup`.
 
 import difflib
 import math
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
 import numpy as np
 from pydantic import Field, field_validator, model_validator
@@ -39,17 +39,26 @@ MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
 MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
 
 
+Pair = Annotated[list[float], Field(min_length=2, max_length=2)]  # a TOML array of two numbers
+
+
 class TuningSet(Strict):
     """One controller set's search, as ``emasim tune`` records it (emasim.tuning.Tuned)."""
 
     trials: int = Field(ge=0, description="trials completed")
     knobs: int = Field(ge=0, description="knobs searched")
     stopped: Literal["converged", "budget"]
-    widened: dict[str, tuple[float, float]] = Field(
+    widened: dict[str, Pair] = Field(
         default={}, description="knob -> the search range it ended with, where widened"
     )
     on_bound: dict[str, Literal["lower", "upper"]] = Field(
         default={}, description="knob -> the bound its optimum still sits on"
+    )
+    tuned_point: Pair | None = Field(
+        default=None, description="(chattering, tracking) of the tuned gains' trial"
+    )
+    front: list[Pair] = Field(
+        default=[], description="(chattering, tracking) of the non-dominated trials"
     )
 
 
