@@ -227,6 +227,9 @@ def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproduci
             )
             searches.append([(t.params, t.value) for t in result.study.trials])
     assert searches[0] == searches[1] and len(searches[0]) == 4
+    trials = result.study.trials
+    for first, second in ((0, 1), (2, 3)):  # asked as pairs: the second before the first ends
+        assert trials[second].datetime_start < trials[first].datetime_complete
     params, value = searches[0][-1]
     candidate = scenario.model_copy(
         update={"controllers": _controllers_with(scenario.controllers, params)}

@@ -281,8 +281,8 @@ def tune_variant(
     URL (:func:`open_storage`); ``progress(done, cap)`` is told the finished trials after each
     batch (a resumed study's earlier trials included). The trials run through the study
     facility's :func:`emasim.experiments.batch.map_runs`, as many at once as ``client`` has
-    workers (default: one, in this process); the sampler is told their costs in trial order,
-    so a seed gives the same search whatever the schedule."""
+    worker threads (default: one at a time, in this process); the sampler is told their costs
+    in trial order, so a seed and a batch size give the same search whatever the schedule."""
     if isinstance(budget, int):
         budget = Budget(trials=budget, patience=None, widenings=0)
     base = search_space(controllers)
@@ -310,7 +310,7 @@ def tune_variant(
     attrs = study.user_attrs
     space = {key: tuple(span) for key, span in attrs.get("space", base).items()}
     rounds, round_start = attrs.get("widenings", 0), attrs.get("round_start", 0)
-    batch = 1 if client is None else max(1, len(client.scheduler_info()["workers"]))
+    batch = 1 if client is None else max(1, sum(client.nthreads().values()))  # trials at once
 
     def evaluate(trials):
         candidates = [
