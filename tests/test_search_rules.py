@@ -52,7 +52,10 @@ def test_the_limits_are_those_the_field_validates():
 def test_the_budget_scales_with_the_knobs_unless_one_count_is_given():
     assert Budget(trials_per_knob=30).cap(8) == 240
     assert Budget(trials=60).cap(8) == 60
-    text = Budget(trials_per_knob=30, patience=20, tolerance=0.01, widenings=2).describe()
-    assert "30 trials per knob" in text and "1%" in text and "last 20" in text
+    budget = Budget(trials_per_knob=30, patience_per_knob=10, tolerance=0.01, widenings=2)
+    assert budget.window(3) == 30 and budget.window(8) == 80
+    text = budget.describe()
+    assert "30 trials per knob" in text and "1%" in text and "last 10 trials per knob" in text
     assert "at most 2 times" in text
-    assert Budget(trials=5, patience=None, widenings=0).describe() == "5 trials per controller set"
+    fixed = Budget(trials=5, patience_per_knob=None, widenings=0)
+    assert fixed.describe() == "5 trials per controller set" and fixed.window(3) is None

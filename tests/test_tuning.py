@@ -169,7 +169,7 @@ def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path,
     monkeypatch.setattr(SpeedPI, "tunable_ranges", lambda self: {"bandwidth_Hz": (5.0, 6.0)})
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
     storage = f"sqlite:///{tmp_path / 'study.db'}"
-    budget = Budget(trials=3, patience=None, widenings=2)
+    budget = Budget(trials=3, patience_per_knob=None, widenings=2)
     result = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
     given = scenario.controllers.speed.bandwidth_Hz
     rounds = result.study.user_attrs["widenings"]
@@ -185,8 +185,8 @@ def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path,
 
 def test_the_search_stops_once_converged(tmp_path):
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
-    # a tolerance of 100 %: converged as soon as the patience has passed
-    budget = Budget(trials=50, patience=2, tolerance=1.0, widenings=0)
+    # a tolerance of 100 %: converged as soon as the window (2 trials for 1 knob) has passed
+    budget = Budget(trials=50, patience_per_knob=2, tolerance=1.0, widenings=0)
     result = tune_variant(
         scenario, "PI", scenario.controllers, budget, f"sqlite:///{tmp_path / 's.db'}"
     )

@@ -369,17 +369,18 @@ def tune(
     trials_per_knob: Annotated[
         int, typer.Option(min=1, max=10000, help="trials per knob of a set, per round")
     ] = 40,
-    patience: Annotated[
+    patience_per_knob: Annotated[
         int,
         typer.Option(
             min=0,
             max=10000,
             help="stop a round once its best improved by less than --tolerance over this "
-            "many trials (0: never early)",
+            "many trials per knob (0: never early)",
         ),
-    ] = 20,
+    ] = 10,
     tolerance: Annotated[
-        float, typer.Option(min=0.0, max=1.0, help="relative improvement --patience asks for")
+        float,
+        typer.Option(min=0.0, max=1.0, help="relative improvement --patience-per-knob asks for"),
     ] = 0.01,
     widen: Annotated[
         int,
@@ -419,7 +420,7 @@ def tune(
     from .search_rules import Budget
     from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
 
-    budget = Budget(trials, trials_per_knob, patience or None, tolerance, widen)
+    budget = Budget(trials, trials_per_knob, patience_per_knob or None, tolerance, widen)
 
     try:
         raw, source = read_scenario_file(scenario)

@@ -4,8 +4,10 @@ A controller set with more knobs needs more trials, so a fixed trial count for e
 favours the one with fewer knobs. :class:`Budget` gives each set
 
 * a cap of ``trials_per_knob`` x its number of knobs (or one fixed ``trials`` for all), and
-* an early stop once converged: the best cost of the last ``patience`` trials is less than
-  ``tolerance`` (relative) below the best before them (:func:`converged`).
+* an early stop once converged: the best cost of the last ``patience_per_knob`` x knobs
+  trials is less than ``tolerance`` (relative) below the best before them (:func:`converged`).
+  The window grows with the knobs too: a search of 8 knobs takes longer to find a better
+  point than one of 3, and a fixed window would stop it first.
 
 An optimum that sits on a bound of its search range (:func:`bound_side`: within BOUND_MARGIN
 of the range's log width) says the range was too narrow. The range is widened on that side by
@@ -24,19 +26,24 @@ WIDEN_FACTOR = 4.0  # a bound the optimum sits on moves out by this factor
 @dataclass(frozen=True)
 class Budget:
     """How long each controller set is searched (module docstring). ``trials``: one count for
-    every set, per round; else ``trials_per_knob`` x knobs. ``patience``: stop a round early
-    once the last ``patience`` trials improved the best by less than ``tolerance`` (None: never
-    early). ``widenings``: rounds of widening a bound the optimum sits on."""
+    every set, per round; else ``trials_per_knob`` x knobs. ``patience_per_knob``: stop a round
+    early once its last ``patience_per_knob`` x knobs trials improved the best by less than
+    ``tolerance`` (None: never early). ``widenings``: rounds of widening a bound the optimum
+    sits on."""
 
     trials: int | None = None
     trials_per_knob: int = 40
-    patience: int | None = 20
+    patience_per_knob: int | None = 10
     tolerance: float = 0.01
     widenings: int = 3
 
     def cap(self, knobs: int) -> int:
         """The trials of one round for a set with ``knobs`` knobs."""
         return self.trials if self.trials is not None else self.trials_per_knob * knobs
+
+    def window(self, knobs: int) -> int | None:
+        """The trials over which a set with ``knobs`` knobs must improve (None: no early stop)."""
+        return self.patience_per_knob * knobs if self.patience_per_knob else None
 
     def describe(self) -> str:
         """The rule in words, for the tuned file's record and the report."""
@@ -47,8 +54,8 @@ class Budget:
         )
         early = (
             f", stopped once the best cost improved by less than {self.tolerance:.0%} over the "
-            f"last {self.patience} trials"
-            if self.patience
+            f"last {self.patience_per_knob} trials per knob"
+            if self.patience_per_knob
             else ""
         )
         widen = (

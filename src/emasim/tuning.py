@@ -45,7 +45,7 @@ from pathlib import Path
 import optuna
 
 from .analysis.pareto import pareto_front, thinned
-from .analysis.report import CHATTER_WEIGHT, tuning_terms
+from .analysis.report import tuning_terms, weighted_cost
 from .errors import InputError, SimulationDiverged
 from .search_rules import Budget, bound_side, converged, hard_limits, widened
 from .sim.engine import simulate
@@ -236,7 +236,7 @@ def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
     except SimulationDiverged:
         return DIVERGED_COST, math.nan, math.nan
     tracking, chatter = tuning_terms(result, max_current)
-    return tracking + CHATTER_WEIGHT * chatter, tracking, chatter
+    return weighted_cost(tracking, chatter), tracking, chatter
 
 
 @contextlib.contextmanager
@@ -284,7 +284,7 @@ def tune_variant(
     worker threads (default: one at a time, in this process); the sampler is told their costs
     in trial order, so a seed and a batch size give the same search whatever the schedule."""
     if isinstance(budget, int):
-        budget = Budget(trials=budget, patience=None, widenings=0)
+        budget = Budget(trials=budget, patience_per_knob=None, widenings=0)
     base = search_space(controllers)
     max_current = scenario.plant.motor.max_current_A
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -368,7 +368,8 @@ def tune_variant(
 
 def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -> str:
     """Ask, run and tell trials over ``space`` until ``cap`` trials have completed ("budget")
-    or, ``budget.patience`` trials into this round, the search has converged ("converged")."""
+    or, once this round has run the budget's window of trials, the search has converged
+    ("converged")."""
     distributions = {
         k: optuna.distributions.FloatDistribution(*s, log=True) for k, s in space.items()
     }
@@ -378,7 +379,7 @@ def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -
             progress(min(len(values), cap), cap)
         if len(values) >= cap:
             return "budget"
-        patience = budget.patience
+        patience = budget.window(len(space))
         if (
             patience
             and len(values) - round_start >= patience
@@ -417,7 +418,7 @@ def tune_scenario(
     ``report(label, tuned)`` after each set, ``progress(label, done, cap)`` after each batch.
     """
     if isinstance(budget, int):
-        budget = Budget(trials=budget, patience=None, widenings=0)
+        budget = Budget(trials=budget, patience_per_knob=None, widenings=0)
     tuned_raw = dict(raw)
     results = {}
     entries = list(tuned_raw["compare"]) if scenario.compare else None

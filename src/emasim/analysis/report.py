@@ -168,7 +168,11 @@ def tuning_cost(result, max_current_A: float) -> float:
     J = IAE / (T * max|ref|) + CHATTER_WEIGHT * TV(iq*) / I_max, on the loop the reference
     drives (speed, or rod position), TV(iq*) the total variation per second of the current
     command (A/s) and I_max the drive's current limit (A)."""
-    tracking, chatter = tuning_terms(result, max_current_A)
+    return weighted_cost(*tuning_terms(result, max_current_A))
+
+
+def weighted_cost(tracking: float, chatter: float) -> float:
+    """The tuning cost from its two terms (:func:`tuning_terms`)."""
     return tracking + CHATTER_WEIGHT * chatter
 
 
