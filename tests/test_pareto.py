@@ -52,3 +52,18 @@ def test_the_report_shows_the_comparison_only_with_two_fronts():
     assert "| PID | 2.00 | 2.00 | 5.00 |" in lines[1].replace("  ", " ")
     assert pr.pareto_markdown({"sets": {"PID": record["sets"]["PID"]}}) == []
     assert pr.pareto_markdown({"method": "x", "trials_per_controller_set": 60}) == []
+
+
+def test_the_pareto_figure_draws_each_front_and_its_tuned_point():
+    from emasim.analysis.plots import plot_pareto
+
+    sets = {
+        "PID": {"front": [[1.0, 4.0], [2.0, 2.0]], "tuned_point": [2.0, 2.0]},
+        "hybrid": {"front": [[1.5, 5.0], [3.0, 1.0]], "tuned_point": [3.0, 1.0]},
+    }
+    (ax,) = plot_pareto(sets).axes
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    assert list(lines["PID: front"].get_xdata()) == [1.0, 2.0]
+    assert list(lines["hybrid: front"].get_ydata()) == [5.0, 1.0]
+    assert list(lines["hybrid: tuned"].get_xdata()) == [3.0]
+    assert ax.get_xscale() == ax.get_yscale() == "log"
