@@ -8,7 +8,8 @@
 The derivative's set-point weight c (Astrom & Hagglund's two-degree-of-freedom PID) is 0 for
 the derivative on the measurement, the industrial default: a set-point step gives no
 derivative kick; and 1 for the textbook derivative on the error, which kicks by
-Kd dr / (Tf + Ts) at the step.
+Kd dr / (Tf + Ts) at the step. The derivative's memory starts at the first sample, so a step
+there (a reference that starts stepped, as bench-step's does) kicks neither.
 
 One compiled law serves the speed loop (y = motor speed, u = iq*) and the position loop
 (y = rod position, u = motor speed command). The configs below choose the gains from a
