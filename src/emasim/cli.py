@@ -22,10 +22,12 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from .errors import EmasimError
+from .search_rules import Budget  # small: math and dataclasses only
 
 console = Console()
 err_console = Console(stderr=True)
 log = logging.getLogger("emasim")
+DEFAULT_BUDGET = Budget()  # the tune options' defaults
 
 
 def _say_error(message: str) -> None:
@@ -368,7 +370,7 @@ def tune(
     ] = None,
     trials_per_knob: Annotated[
         int, typer.Option(min=1, max=10000, help="trials per knob of a set, per round")
-    ] = 40,
+    ] = DEFAULT_BUDGET.trials_per_knob,
     patience_per_knob: Annotated[
         int,
         typer.Option(
@@ -377,15 +379,15 @@ def tune(
             help="stop a round once its best improved by less than --tolerance over this "
             "many trials per knob (0: never early)",
         ),
-    ] = 10,
+    ] = DEFAULT_BUDGET.patience_per_knob,
     tolerance: Annotated[
         float,
         typer.Option(min=0.0, max=1.0, help="relative improvement --patience-per-knob asks for"),
-    ] = 0.01,
+    ] = DEFAULT_BUDGET.tolerance,
     widen: Annotated[
         int,
         typer.Option(min=0, max=20, help="times a bound the optimum sits on may be widened"),
-    ] = 3,
+    ] = DEFAULT_BUDGET.widenings,
     workers: Annotated[
         int | None,
         typer.Option(min=1, max=1024, help="trials at once (default: one per core, threads)"),
@@ -417,7 +419,6 @@ def tune(
         read_scenario_text,
         validate_scenario,
     )
-    from .search_rules import Budget
     from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
 
     budget = Budget(trials, trials_per_knob, patience_per_knob or None, tolerance, widen)
