@@ -459,7 +459,7 @@ def tune_scenario(
         "first trial = the gains given",
         "budget": budget.describe(),
         "seed": seed,
-        "cost": "IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max (emasim.tuning.tuning_cost)",
+        "cost": "IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max (emasim.analysis.report.tuning_cost)",
         "sets": {label: result.record() for label, result in results.items()},
     }
     return tuned_raw, results
