@@ -62,7 +62,26 @@ def render(headline: dict) -> str:
         ours = f"{number(h['ours_pid'])} → {number(h['ours_hybrid'])} {h['unit']} "
         ours += f"({percent(h['ours_reduction'])})"
         lines.append(f"| {words} | {paper}) | {ours} |")
-    return "\n".join(lines)
+    return "\n".join(lines + variant_lines(headline))
+
+
+def variant_lines(headline: dict) -> list[str]:
+    """A sentence per further PID variant of ours (the paper has none): the figures of the
+    experiments that compare it, the variant's value against the hybrid's."""
+    lines = []
+    labels = dict.fromkeys(label for h in headline.values() for label in h.get("variants", {}))
+    for label in labels:
+        figures = []
+        for key, words in NAMES.items():
+            h = headline[key]
+            v = h.get("variants", {}).get(label)
+            if v:
+                figures.append(
+                    f"{words} {number(v['value'])} → {number(h['ours_hybrid'])} {h['unit']} "
+                    f"({percent(v['hybrid_reduction'])})"
+                )
+        lines += ["", f"Ours, {label} → hybrid: " + "; ".join(figures) + "."]
+    return lines
 
 
 def signed(x: float) -> str:

@@ -57,6 +57,14 @@ def test_each_stage_adds_its_elements_to_the_one_before():
     assert stages["lumped"].compare == bench.compare  # the same gains throughout
 
 
+def test_only_the_sets_asked_for_run_and_are_kept():
+    short = {"bench-step": load_scenario("bench-step", settings=["duration_s=0.2"])}
+    known = {"bench-step": {"PID": {"x": 1.0}, "hybrid": {"x": 2.0}}}
+    result = ablation(short, known, labels=("hybrid",))
+    assert all(set(by_label) == {"hybrid"} for by_label in result["bench-step"].values())
+    assert result["bench-step"][STAGES[-1][0]] == {"hybrid": {"x": 2.0}}
+
+
 def test_the_rows_carry_each_stages_own_metrics_and_the_papers(tmp_path):
     short = {"bench-step": load_scenario("bench-step", settings=["duration_s=2.5"])}
     result = ablation(short)

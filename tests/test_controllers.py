@@ -163,3 +163,24 @@ def test_the_derivative_on_the_error_kicks_at_a_set_point_step_and_the_measureme
     np.testing.assert_array_equal(outputs[0.0], [0.0, kp, kp, kp])
     kick = kd / (tf + ts) * (tf / (tf + ts)) ** np.arange(3)
     np.testing.assert_allclose(outputs[1.0], [0.0, *(kp + kick)], rtol=1e-12)
+
+
+def test_on_a_step_at_the_first_sample_the_pid_variants_run_the_same_trace():
+    """Why bench-step compares one PID and bench-sine two: bench-step's reference is a step at
+    t = 0, so its rate is zero (no feed-forward) and the derivative state starts on the first
+    sample's error (no kick). Feed-forward on, or the derivative on the error, changes no bit
+    of the run; on bench-sine's moving reference each changes the run."""
+    traces = {}
+    for name in ("bench-step", "bench-sine"):
+        for variant in ("", "velocity_feedforward=true", 'derivative_on="error"'):
+            settings = ["duration_s=0.3", 'controllers.cascade="pid"']
+            if variant:
+                settings.append(f"controllers.position.{variant}")
+            sc = load_scenario(name, settings=settings)
+            traces[name, variant] = simulate(sc.setup())["rudder_angle_rad"]
+    plain = traces["bench-step", ""]
+    for variant in ("velocity_feedforward=true", 'derivative_on="error"'):
+        np.testing.assert_array_equal(traces["bench-step", variant], plain)
+    moving = traces["bench-sine", ""]
+    for variant in ("velocity_feedforward=true", 'derivative_on="error"'):
+        assert not np.array_equal(traces["bench-sine", variant], moving)  # the setting bites

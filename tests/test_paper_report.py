@@ -3,6 +3,8 @@ fixed point with three significant figures, text left and numbers right, control
 transposed with their units, flags as yes/no on both sides, formulas kept literal, the page
 from its template with the title escaped."""
 
+import pytest
+
 from emasim.analysis import paper_report as pr
 
 
@@ -40,6 +42,31 @@ def test_a_flag_reads_yes_or_no_on_both_sides():
     (row,) = pr.bench_table(paper, ours, {"flag": ("flag", "yes/no")})
     assert row["ours_pid"] is True and row["ours_hybrid"] is False
     assert row["ours_reduction"] is None
+
+
+def test_a_further_pid_variant_gets_its_value_and_the_hybrids_reduction_against_it():
+    paper = {pr.PID_LABEL: {"lag": 1.3}, pr.HYBRID_LABEL: {"lag": 0.3}}
+    ours = {
+        pr.PID_LABEL: {"lag": 0.2},
+        pr.HYBRID_LABEL: {"lag": 0.05},
+        "industrial PID": {"lag": 0.04},
+    }
+    (row,) = pr.bench_table(paper, ours, {"lag": ("lag", "deg")})
+    assert row["ours_reduction"] == pytest.approx(0.75)
+    variant = row["variants"]["industrial PID"]
+    assert variant["value"] == 0.04
+    # (|0.04| - |0.05|) / |0.04|: the hybrid loses to this variant
+    assert variant["hybrid_reduction"] == pytest.approx(-0.25)
+    header, _, line = pr._bench_markdown([row]).splitlines()
+    assert header.endswith("| ours industrial PID | reduction vs industrial PID |")
+    assert line.endswith("| 0.0400 | -25 % |")
+
+
+def test_without_further_sets_the_bench_table_has_the_papers_columns_only():
+    sides = {pr.PID_LABEL: {"lag": 1.0}, pr.HYBRID_LABEL: {"lag": 0.5}}
+    (row,) = pr.bench_table(sides, sides, {"lag": ("lag", "deg")})
+    assert row["variants"] == {}
+    assert pr._bench_markdown([row]).splitlines()[0].endswith("| ours reduction |")
 
 
 def test_the_page_keeps_formulas_literal_and_escapes_the_title():

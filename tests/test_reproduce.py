@@ -67,11 +67,30 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
             assert measured[key][side] == pytest.approx(item[side], rel=1e-9), (key, side)
+        for label, variant in item["variants"].items():
+            ours = measured[key]["variants"][label]["value"]
+            assert ours == pytest.approx(variant["value"], rel=1e-9), (key, label)
     # the README's verdict: on the realistic bench the hybrid beats PID on all five figures
     assert all(item["hybrid_better"] for item in measured.values())
     assert "on the nominal bench the hybrid beats PID on all five figures" in " ".join(
         readme.split()
     )
+
+
+def test_the_readme_gives_the_hybrid_against_each_further_pid_variant():
+    module = module_at("docs/readme_headline.py")
+    stored = json.loads(module.STORE.read_text())
+    for key in stored:
+        stored[key]["variants"] = {}
+    stored["sine_speed_fluctuation_reduction"]["variants"] = {
+        "PID+FF": {"value": 0.5, "hybrid_reduction": 0.25}
+    }
+    table = module.render(stored).splitlines()
+    hybrid = module.number(stored["sine_speed_fluctuation_reduction"]["ours_hybrid"])
+    assert (
+        table[-1] == f"Ours, PID+FF → hybrid: sine speed fluctuation 0.5 → {hybrid} deg/s (−25 %)."
+    )
+    assert table[-2] == "" and len(table) == 2 + len(module.NAMES) + 2
 
 
 def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):

@@ -118,17 +118,27 @@ def reduction(before: float, after: float) -> float | None:
     return (abs(before) - abs(after)) / abs(before)
 
 
+def variant_labels(ours: dict) -> list[str]:
+    """The controller sets of a comparison beside PID and the hybrid (e.g. the industrial
+    PID, with velocity feed-forward), in their order."""
+    return [label for label in ours if label not in (PID_LABEL, HYBRID_LABEL)]
+
+
 def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
-    """Rows of a bench table: paper PID/hybrid, ours PID/hybrid, and both reductions."""
+    """Rows of a bench table: paper PID/hybrid, ours PID/hybrid, and both reductions; with
+    ``variants`` {label: {value, hybrid_reduction}} for every further set of ours (the paper
+    has none), the hybrid's reduction against it."""
     table = []
     for paper_key, (our_key, unit) in rows.items():
         p_pid, p_hyb = paper[PID_LABEL].get(paper_key), paper[HYBRID_LABEL].get(paper_key)
         o_pid, o_hyb = ours[PID_LABEL].get(our_key), ours[HYBRID_LABEL].get(our_key)
+        others = {label: ours[label].get(our_key) for label in variant_labels(ours)}
         numeric = all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in (p_pid, p_hyb)
         )
         if isinstance(p_pid, bool):  # a flag: ours as yes/no too, not 0/1
             o_pid, o_hyb = (None if v is None else bool(v) for v in (o_pid, o_hyb))
+            others = {k: None if v is None else bool(v) for k, v in others.items()}
         table.append(
             {
                 "metric": our_key,
@@ -139,13 +149,21 @@ def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
                 "ours_hybrid": o_hyb,
                 "paper_reduction": reduction(p_pid, p_hyb) if numeric else None,
                 "ours_reduction": reduction(o_pid, o_hyb) if numeric else None,
+                "variants": {
+                    label: {
+                        "value": value,
+                        "hybrid_reduction": reduction(value, o_hyb) if numeric else None,
+                    }
+                    for label, value in others.items()
+                },
             }
         )
     return table
 
 
 def headline(paper: dict, tables: dict) -> dict:
-    """The abstract's five figures: paper values from its tables, ours from the same metric."""
+    """The abstract's five figures: paper values from its tables, ours from the same metric,
+    and the hybrid against each further PID variant its experiment compares (``variants``)."""
     out = {}
     for name, (experiment, row_key, definition) in HEADLINE.items():
         rows = BENCH_STEP_ROWS if experiment == "bench_step" else BENCH_SINE_ROWS
@@ -162,6 +180,7 @@ def headline(paper: dict, tables: dict) -> dict:
             "paper_reduction": row["paper_reduction"],
             "ours_reduction": row["ours_reduction"],
             "hybrid_better": abs(row["ours_hybrid"]) < abs(row["ours_pid"]),
+            "variants": row["variants"],  # the experiment's further PID sets, if any
         }
     return out
 
@@ -339,6 +358,9 @@ def markdown_table(header: list[str], rows: list[list]) -> str:
 
 
 def _bench_markdown(table: list[dict]) -> str:
+    """The paper's PID and hybrid beside ours, then each further set of ours (a PID variant)
+    with the hybrid's reduction against it."""
+    labels = list(table[0].get("variants", {})) if table else []
     header = [
         "metric",
         "unit",
@@ -348,6 +370,7 @@ def _bench_markdown(table: list[dict]) -> str:
         "ours PID",
         "ours hybrid",
         "ours reduction",
+        *(f"{text} {label}" for label in labels for text in ("ours", "reduction vs")),
     ]
     rows = [
         [
@@ -359,6 +382,14 @@ def _bench_markdown(table: list[dict]) -> str:
             _fmt(r["ours_pid"]),
             _fmt(r["ours_hybrid"]),
             _pct(r["ours_reduction"]),
+            *(
+                cell
+                for label in labels
+                for cell in (
+                    _fmt(r["variants"][label]["value"]),
+                    _pct(r["variants"][label]["hybrid_reduction"]),
+                )
+            ),
         ]
         for r in table
     ]
@@ -565,7 +596,9 @@ def write_report(
         "# emasim reproduction of Ding & Zhou (2025)",
         f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "
         "PID = position PID over speed PI (no feed-forward, the paper's conventional "
-        "baseline). Both run over the same current loop on the same virtual bench.",
+        "baseline); industrial PID, where an experiment has it = the same with velocity "
+        "feed-forward (the derivative on the measurement in both). All run over the same "
+        "current loop on the same virtual bench.",
     ]
     if "headline" in tables:
         parts += ["## The abstract's five figures", _headline_markdown(tables["headline"])]

@@ -93,22 +93,31 @@ def stage_scenarios(scenario: Scenario) -> list[tuple[str, Scenario]]:
     return [(name, sc) for (name, _), sc in zip(STAGES, reversed(stages), strict=True)]
 
 
-def ablation(scenarios: dict[str, Scenario], known: dict | None = None) -> dict:
+def ablation(
+    scenarios: dict[str, Scenario], known: dict | None = None, labels: tuple[str, ...] = ()
+) -> dict:
     """{experiment: {stage: {label: metrics}}} of every stage of each scenario, every run in
     parallel (emasim.experiments.batch.run_all). ``known`` ({experiment: {label: metrics}})
-    gives the last stage's metrics when the scenario itself has already run."""
+    gives the last stage's metrics when the scenario itself has already run; ``labels``, when
+    given, the controller sets to run (the ablation's tables compare PID and the hybrid)."""
     known = known or {}
     runs = []
     for name, scenario in scenarios.items():
         for stage, staged in stage_scenarios(scenario):
             if stage == STAGES[-1][0] and name in known:
                 continue
-            runs.extend((name, stage, label, single) for label, single in staged.variants())
+            runs.extend(
+                (name, stage, label, single)
+                for label, single in staged.variants()
+                if not labels or label in labels
+            )
     results = run_all([run[3] for run in runs], labels=[run[2] for run in runs])
     out = {name: {stage: {} for stage, _ in STAGES} for name in scenarios}
     for (name, stage, label, _), result in zip(runs, results, strict=True):
         out[name][stage][label] = result.metrics
     for name, metrics in known.items():
         if name in out:
-            out[name][STAGES[-1][0]] = metrics
+            out[name][STAGES[-1][0]] = {
+                label: m for label, m in metrics.items() if not labels or label in labels
+            }
     return out

@@ -6,6 +6,8 @@ from pathlib import Path
 
 from ..analysis.paper_report import (
     EXPERIMENTS,
+    HYBRID_LABEL,
+    PID_LABEL,
     SWEEP_CLEARANCES_MM,
     ablation_rows,
     build_tables,
@@ -96,7 +98,8 @@ def reproduce(
     if with_ablation and ablated:
         known = {name: c.metrics for name, c in ablated.items()}
         scenarios = {name: load_scenario(name) for name in ablated}
-        tables["ablation"] = ablation_rows(ablation(scenarios, known))
+        runs = ablation(scenarios, known, labels=(PID_LABEL, HYBRID_LABEL))
+        tables["ablation"] = ablation_rows(runs)
 
     if "headline" in tables:
         if robustness_runs is not None:
