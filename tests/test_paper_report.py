@@ -80,6 +80,8 @@ def test_the_gains_sentence_states_each_sets_search():
     record = {
         "method": "optuna TPE",
         "budget": "at most 40 trials per knob",
+        "seed": 3,
+        "batch": 2,
         "cost": "J",
         "sets": {
             "PID": {"trials": 57, "knobs": 3, "stopped": "converged"},
@@ -93,6 +95,7 @@ def test_the_gains_sentence_states_each_sets_search():
         },
     }
     text = pr.tuning_sentence(record)
+    assert "at most 40 trials per knob; 2 trials at a time; seed 3;" in text
     assert "PID 57 trials for 3 knobs (converged)" in text
     assert (
         "hybrid 320 trials for 8 knobs (budget; speed.bandwidth_Hz widened to [1.25, 300]" in text

@@ -94,6 +94,7 @@ def test_every_controller_set_gets_the_same_budget_and_the_file_records_it(tmp_p
         assert results[label].best <= results[label].given
     tuned = validate_scenario(tuned_raw)
     assert tuned.tuning["budget"] == "3 trials per controller set"
+    assert tuned.tuning["batch"] == 1  # no Dask client: one trial at a time
     assert {label: record.trials for label, record in tuned.tuning["sets"].items()} == {
         label: 3 for label in results
     }

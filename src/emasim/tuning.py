@@ -310,7 +310,7 @@ def tune_variant(
     attrs = study.user_attrs
     space = {key: tuple(span) for key, span in attrs.get("space", base).items()}
     rounds, round_start = attrs.get("widenings", 0), attrs.get("round_start", 0)
-    batch = 1 if client is None else max(1, sum(client.nthreads().values()))  # trials at once
+    batch = trials_at_once(client)
 
     def evaluate(trials):
         candidates = [
@@ -398,6 +398,12 @@ def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -
             study.tell(trial, cost)
 
 
+def trials_at_once(client) -> int:
+    """The batch size of the ask-and-tell search: the Dask client's worker threads (1 without
+    a client). With the seed it fixes the search, so the record states it."""
+    return 1 if client is None else max(1, sum(client.nthreads().values()))
+
+
 def tune_scenario(
     raw: dict,
     scenario,
@@ -459,6 +465,7 @@ def tune_scenario(
         "first trial = the gains given",
         "budget": budget.describe(),
         "seed": seed,
+        "batch": trials_at_once(client),
         "cost": "IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max (emasim.analysis.report.tuning_cost)",
         "sets": {label: result.record() for label, result in results.items()},
     }

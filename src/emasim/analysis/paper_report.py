@@ -573,10 +573,10 @@ def tuning_sentence(tuning: dict | None) -> str:
             for key, side in record.get("on_bound", {}).items()
         )
         sets.append(text + ")")
+    batch = f"; {tuning['batch']} trials at a time" if "batch" in tuning else ""
     return (
-        f"tuned ({tuning['method']}; {tuning['budget']}; cost `{tuning['cost']}`): "
-        + ", ".join(sets)
-        + "."
+        f"tuned ({tuning['method']}; {tuning['budget']}{batch}; seed {tuning['seed']}; "
+        f"cost `{tuning['cost']}`): " + ", ".join(sets) + "."
     )
 
 
