@@ -62,7 +62,19 @@ def render(headline: dict) -> str:
         ours = f"{number(h['ours_pid'])} → {number(h['ours_hybrid'])} {h['unit']} "
         ours += f"({percent(h['ours_reduction'])})"
         lines.append(f"| {words} | {paper}) | {ours} |")
-    return "\n".join(lines + variant_lines(headline))
+    return "\n".join(lines + ["", verdict_line(headline)] + variant_lines(headline))
+
+
+def verdict_line(headline: dict) -> str:
+    """Which side the nominal bench's five figures take (lower magnitude is better)."""
+    losses = [words for key, words in NAMES.items() if not headline[key]["hybrid_better"]]
+    if not losses:
+        return "On the nominal bench the hybrid beats PID on all five figures."
+    wins = len(NAMES) - len(losses)
+    return (
+        f"On the nominal bench the hybrid beats PID on {wins} of the five figures; PID is "
+        f"better on: {', '.join(losses)}."
+    )
 
 
 def variant_lines(headline: dict) -> list[str]:
