@@ -9,8 +9,16 @@ import pytest
 from helpers import module_at
 from typer.testing import CliRunner
 
-from emasim.analysis.paper_report import EXPERIMENTS, HEADLINE, paper_results, reduction
+from emasim.analysis.paper_report import (
+    EXPERIMENTS,
+    HEADLINE,
+    HYBRID_LABEL,
+    paper_results,
+    reduction,
+)
+from emasim.analysis.paper_report import notes as notes_text
 from emasim.cli import app
+from emasim.scenarios.loader import load_scenario
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"
 ROOT = Path(__file__).parents[1]
@@ -220,6 +228,30 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
         for measured, written in pairs:
             assert shown(measured, written), (words, measured, written)
     assert step["SMC"]["load_recovery_time_s"] is None  # "its recovery time is undefined"
+
+
+def test_the_notes_bounds_are_the_ones_the_tuning_records_flag():
+    """The notes say where the tuned hybrid's optimum sits on a bound: the records agree."""
+    notes = " ".join(notes_text().split())
+    claims = {  # scenario -> the knobs the notes name, and the side
+        "bench-step": {
+            "position.switching_gain_m_s2": "lower",
+            "speed.observer_bandwidth_Hz": "lower",
+        },
+        "bench-sine": {
+            "position.surface_slope_per_s": "lower",
+            "position.switching_gain_m_s2": "upper",
+        },
+    }
+    assert (
+        "On bench-step its SMC switching gain and its GPIO observer bandwidth end on the lower"
+        in notes
+    )
+    assert "its surface slope ends on its lower bound and its switching gain on the upper" in notes
+    for name, knobs in claims.items():
+        on_bound = load_scenario(name).tuning["sets"][HYBRID_LABEL].on_bound
+        for knob, side in knobs.items():
+            assert on_bound.get(knob) == side, (name, knob, on_bound)
 
 
 def test_the_clearance_sweep_at_the_benchs_clearance_is_the_cosim_step_run(report):
