@@ -146,3 +146,15 @@ def test_a_diverging_run_stops_with_the_time_and_state(tmp_path):
     assert result.exit_code == 2
     assert "diverged at t =" in result.output and "solver.step_s = 0.0001 s is too" in result.output
     assert not (tmp_path / "d").exists()
+
+
+def test_a_controllers_design_check_is_one_warning_line(tmp_path):
+    """The super-twisting law's check of the paper's eq. 37 warns through Python's warnings: the
+    command line shows it as one 'warning:' line, with no source line and no category."""
+    args = ["run", "speed-step", "-c", "speed=st-gpio", "--set", "duration_s=0.002"]
+    args += ["--set", "controllers.speed.eq37_bound=1e5", "--no-plot", "--out", str(tmp_path / "r")]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if "eq. 37" in line]
+    assert lines and all(line.startswith("warning: st-gpio: paper eq. 37") for line in lines)
+    assert "UserWarning" not in result.output and "warnings.warn" not in result.output

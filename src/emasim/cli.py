@@ -127,10 +127,19 @@ class _ConsoleHandler(logging.Handler):
 
 
 def _configure_logging(level: int) -> None:
-    """The ``emasim`` logger's level and one handler to stderr (replaced on every command)."""
+    """The ``emasim`` logger's level and one handler to stderr (replaced on every command);
+    Python warnings (a controller's design check, say) become the same one-line warnings."""
+    import warnings
+
     log.handlers[:] = [_ConsoleHandler()]
     log.setLevel(level)
     log.propagate = False
+    warnings.showwarning = _show_warning
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as one ``warning:`` line: its message, without the source line."""
+    log.warning(str(message))
 
 
 def _loud() -> bool:
