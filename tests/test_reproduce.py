@@ -188,9 +188,9 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
             (m["bench-step"]["hybrid"]["steady_error_mean_deg"], "3e-5"),
         ),
         "the hybrid's reverse motion is smaller than the PID's and larger than the industrial": (),
-        "Ours settles in 0.3 to 0.5 s": (
+        "Ours settles in 0.3 to 0.4 s": (
             (min(r["settling_time_s"] for r in pos.values()), "0.3"),
-            (max(r["settling_time_s"] for r in pos.values()), "0.5"),
+            (max(r["settling_time_s"] for r in pos.values()), "0.4"),
         ),
         "Ours is 3.2 to 4.0 ms": (
             (min(1e3 * r["dead_zone_time_s"] for r in pos.values()), "3.2"),
