@@ -39,6 +39,7 @@ from emasim import linearize
 from emasim.analysis.frequency import gain_dB
 from emasim.cli import app
 from emasim.experiments import acceptance as ac
+from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario
 
 KPP, KPS = 20.0, 0.5  # position loop 1/s, speed loop A s/rad: proportional only
@@ -173,6 +174,7 @@ def test_the_datasheet_holds_every_figure_with_its_definition(datasheet):
     html = (out / "report.html").read_text()
     assert "threshold_mm" in html and '<img src="bode.png"' in html
     assert "bandwidth_small_Hz" in output
+    assert foreign_files(out) == []  # every file the datasheet wrote is in its manifest
 
 
 def test_the_figures_obey_the_drive(datasheet):

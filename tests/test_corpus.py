@@ -42,7 +42,7 @@ from emasim.control.pid import PositionPID, SpeedPI
 from emasim.control.rbf import PositionSlidingMode
 from emasim.control.smc import SpeedSMC
 from emasim.control.super_twisting import SpeedSuperTwisting
-from emasim.output import MARKER
+from emasim.output import MARKER, foreign_files
 from emasim.plant.contact import ContactParams
 from emasim.plant.linkage import LinkageParams
 from emasim.plant.parameters import (
@@ -112,7 +112,13 @@ def invoke(*args: str):
 
 
 def error_lines(stderr: str) -> list[str]:
-    return [line for line in stderr.splitlines() if line.strip()]
+    """stderr's lines but blank ones and the note a cold numba cache prints (which depends
+    on what ran before, not on the input)."""
+    return [
+        line
+        for line in stderr.splitlines()
+        if line.strip() and not line.startswith("compiling the simulation core")
+    ]
 
 
 def assert_refused(result, needle: str = "") -> None:
@@ -800,6 +806,7 @@ def assert_ok(result) -> None:
 def assert_complete(folder: Path) -> None:
     assert folder.is_dir() and not folder.is_symlink()
     assert RUN_FILES <= {p.name for p in folder.iterdir()}, sorted(folder.iterdir())
+    assert foreign_files(folder) == []  # every file written is in the manifest
     for name in ("metrics.json", "meta.json"):
         strict_json(folder / name)
 

@@ -15,6 +15,7 @@ import emasim
 from emasim.cli import app
 from emasim.control.slot import CONTROLLER_SIG, Compiled
 from emasim.experiments.runs import run_scenario
+from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario, read_scenario_file, validate_scenario
 from emasim.sim.result import Comparison, Result
 
@@ -100,7 +101,7 @@ def test_trace_formats_round_trip(tmp_path, trace_format):
         str(out),
     )
     assert result.exit_code == 0, result.output
-    assert not (out / "result.parquet").exists()
+    assert not (out / "result.parquet").exists() and foreign_files(out) == []
     loaded = Result.load(out)
     fresh = emasim.run(load_scenario("position-step", label="PI", settings=[SHORT]))
     assert loaded.columns == fresh.columns

@@ -17,10 +17,12 @@ from pathlib import Path
 import pytest
 
 from emasim.output import (
+    JOURNAL,
     MARKER,
     OutputError,
     check_folder,
     clean_leftovers,
+    foreign_files,
     fresh_folder,
     is_emasim_folder,
     json_text,
@@ -28,11 +30,12 @@ from emasim.output import (
     write_file,
     write_folder,
     write_marker,
+    write_new,
 )
 
 
 def fill(tmp):
-    (tmp / "a.txt").write_text("new")
+    write_new(tmp / "a.txt", "new")
 
 
 def dead_pid() -> int:
@@ -83,7 +86,7 @@ def test_an_empty_folder_is_taken(tmp_path):
 
 def test_a_failing_write_leaves_nothing(tmp_path):
     def broken(tmp):
-        (tmp / "half").write_text("x")
+        write_new(tmp / "half", "x")
         raise KeyboardInterrupt  # a Ctrl-C in the middle of the save
 
     with pytest.raises(KeyboardInterrupt):
@@ -134,7 +137,7 @@ def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
 
     def writer(n):
         def content(tmp):
-            (tmp / "who.txt").write_text(str(n))
+            write_new(tmp / "who.txt", str(n))
             start.wait()
 
         try:
@@ -272,3 +275,57 @@ def test_a_file_put_into_a_replaced_result_at_the_last_moment_is_kept(tmp_path, 
     (kept,) = [p for p in tmp_path.iterdir() if ".old-" in p.name]
     assert (kept / "late.txt").read_text() == "keep"
     assert is_emasim_folder(target)
+
+
+def test_a_file_put_into_a_folder_being_built_survives_a_failed_write(tmp_path):
+    """emasim's hidden build folder is open to anyone meanwhile: a file put there, even under
+    a name emasim then tries to write, is not in the build journal, so the failed write
+    removes emasim's own files only."""
+
+    def broken(tmp):
+        (tmp / "sub").mkdir()
+        write_new(tmp / "sub" / "half", "x")
+        (tmp / "mine.txt").write_text("keep")  # someone else's, put in meanwhile
+        (tmp / "taken.txt").write_text("theirs")
+        write_new(tmp / "taken.txt", "ours")  # refused: never opens an existing name
+
+    with pytest.raises(FileExistsError):
+        write_folder(tmp_path / "run", broken)
+    [left] = tmp_path.iterdir()
+    assert sorted(p.name for p in left.iterdir()) == ["mine.txt", "taken.txt"]
+    assert (left / "taken.txt").read_text() == "theirs"
+
+
+def test_a_killed_builds_leftover_loses_only_the_files_its_journal_lists(tmp_path):
+    build = tmp_path / f".run.tmp-{dead_pid()}-abcdef12"
+    build.mkdir()
+    write_marker(build, "run")
+    (build / "sub").mkdir()
+    write_new(build / "a.txt", "ours")
+    write_new(build / "sub" / "b.bin", b"ours")
+    (build / "sub" / "notes.txt").write_text("someone's")
+    assert foreign_files(build) == ["sub/notes.txt"]
+    assert clean_leftovers(tmp_path) == []  # the foreign file keeps the folder
+    assert [p.relative_to(build).as_posix() for p in sorted(build.rglob("*"))] == [
+        "sub",
+        "sub/notes.txt",
+    ]
+    (build / "sub" / "notes.txt").unlink()
+    write_marker(build, "run")
+    write_new(build / "c.txt", "ours")
+    assert clean_leftovers(tmp_path) == [build] and not build.exists()
+
+
+def test_a_file_put_in_while_building_is_published_as_foreign(tmp_path):
+    """It is not in the manifest, so --force refuses to replace the result."""
+
+    def content(tmp):
+        fill(tmp)
+        (tmp / "mine.txt").write_text("keep")
+
+    target = write_folder(tmp_path / "run", content)
+    assert foreign_files(target) == ["mine.txt"]
+    assert not (target / JOURNAL).exists()
+    with pytest.raises(OutputError, match="mine.txt"):
+        write_folder(target, fill, force=True)
+    assert (target / "mine.txt").read_text() == "keep"

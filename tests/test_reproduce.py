@@ -18,6 +18,7 @@ from emasim.analysis.paper_report import (
 )
 from emasim.analysis.paper_report import notes as notes_text
 from emasim.cli import app
+from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"
@@ -53,6 +54,7 @@ def test_every_file_is_written(report):
         assert (report / "runs" / exp.scenario / "metrics.json").is_file()
     html = (report / "report.html").read_text()
     assert "<table>" in html and "figures/bench-step.png" in html
+    assert foreign_files(report) == []  # every file the report wrote is in its manifest
 
 
 def test_headline_has_the_five_figures_with_both_sides(report):

@@ -23,7 +23,7 @@ from emasim.experiments.study import (
     run_study,
 )
 from emasim.experiments.variation import parse_variation, samples
-from emasim.output import OutputError
+from emasim.output import OutputError, foreign_files
 from emasim.scenarios.loader import load_scenario
 
 SHORT = ("duration_s=0.04",)
@@ -251,6 +251,8 @@ def test_every_run_equals_its_scenario_run_alone(tmp_path, client):
     rise = table[table["label"] == "SMC"]["rise_time_s"]
     assert summary["metrics"]["SMC"]["rise_time_s"]["p50"] == pytest.approx(rise.median())
     assert (tmp_path / "s" / "summary" / "distributions.png").stat().st_size > 0
+    assert foreign_files(tmp_path / "s" / "summary") == []
+    assert foreign_files(tmp_path / "s" / RUNS_FOLDER / plan_study(spec).jobs[0].run_id) == []
 
 
 def test_a_study_resumes_with_only_the_runs_it_lacks(tmp_path, client):

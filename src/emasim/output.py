@@ -1,8 +1,12 @@
 """Writing results without ever touching anything emasim did not create.
 
 Every folder emasim writes (a run, a comparison, a report) holds a marker file, ``MARKER``,
-written first and rewritten at the end with the manifest of the files emasim put there. A
-folder is *an emasim result* when it holds that marker. The rules:
+written first and rewritten at the end with the manifest of the files emasim put there. While
+the folder is built, every file is created through :func:`new_file` (or :func:`write_new`),
+which creates it exclusively and only then appends its name to the build's journal,
+``JOURNAL``: so at every moment emasim knows which files in a half-built folder are its own,
+and a file anyone else puts there is never listed. A folder is *an emasim result* when it
+holds the marker. The rules:
 
 * a target that does not exist, or an empty folder, is written;
 * an emasim result is replaced only with ``force=True`` (the command line's ``--force``), and
@@ -43,6 +47,7 @@ from pathlib import Path
 from .errors import EmasimError
 
 MARKER = ".emasim-result"
+JOURNAL = ".emasim-journal"
 RUNS_ROOT = Path("runs")
 _LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?:tmp|old)-(?P<pid>\d+)-[0-9a-f]{8}(?:\.[a-z]+)?$")
 _MAX_SUFFIX = 1000
@@ -83,44 +88,90 @@ def is_emasim_folder(path: Path) -> bool:
 
 
 def foreign_files(folder: Path) -> list[str]:
-    """The files in an emasim result that emasim did not write: every file not in the
-    marker's manifest (all of them when the marker has none). [] means emasim may delete it."""
-    try:
-        listed = set(json.loads((folder / MARKER).read_text())["files"])
-    except (OSError, ValueError, KeyError, TypeError):
-        listed = set()
+    """The files in an emasim folder that emasim did not write: every file neither in the
+    marker's manifest nor in the build journal. [] means emasim may delete the folder."""
+    listed = set(_listed(folder))
     return [name for name in _files_in(folder) if name not in listed]
 
 
 def _files_in(folder: Path) -> list[str]:
-    """Relative paths of every file and link under ``folder`` but the marker."""
+    """Relative paths of every file and link under ``folder`` but the marker and journal."""
     names = []
     for root, dirs, files in os.walk(folder):
         for name in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
             relative = Path(root, name).relative_to(folder).as_posix()
-            if relative != MARKER:
+            if relative not in (MARKER, JOURNAL):
                 names.append(relative)
     return sorted(names)
 
 
-def remove_own(folder: Path) -> bool:
-    """Delete from an emasim folder only the files its marker's manifest lists, then the
-    marker and the folders left empty; anything else stays, with the folders that hold it.
-    A manifest entry that leaves the folder, or reaches through a link, is skipped. True when
-    the folder is gone."""
-    base = folder.resolve()
+def _build_root(path: Path) -> Path | None:
+    """The temporary build folder (``.<name>.tmp-<pid>-<token>``) that holds ``path``, the
+    nearest one up; None when ``path`` is not being built into one."""
+    for parent in Path(path).absolute().parents:
+        match = _LEFTOVER.match(parent.name)
+        if match is not None and ".tmp-" in parent.name:
+            return parent
+    return None
+
+
+@contextlib.contextmanager
+def new_file(path: Path, text: bool = False):
+    """Open a new file for writing and yield the handle; never opens an existing name.
+
+    The file is created exclusively (``open(path, "x")``), and only then, before a byte is
+    written, its path is appended to the journal of the build folder holding it (one line,
+    one ``O_APPEND`` write: safe across threads). A kill at any moment leaves either an
+    unlisted file of emasim's, which stays, or a listed one, which the clean-up removes;
+    never a listed file emasim did not create.
+    """
+    path = Path(path)
+    with open(path, "x" if text else "xb") as handle:
+        root = _build_root(path)
+        if root is not None:
+            line = (path.absolute().relative_to(root).as_posix() + "\n").encode()
+            fd = os.open(root / JOURNAL, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+            try:
+                os.write(fd, line)
+            finally:
+                os.close(fd)
+        yield handle
+
+
+def write_new(path: Path, content: str | bytes) -> None:
+    """Write ``content`` (text or bytes) to a new file through :func:`new_file`."""
+    with new_file(path, text=isinstance(content, str)) as handle:
+        handle.write(content)
+
+
+def _listed(folder: Path) -> list[str]:
+    """The files emasim created in ``folder``: its marker's manifest and its build journal."""
     try:
         listed = json.loads((folder / MARKER).read_text())["files"]
     except (OSError, ValueError, KeyError, TypeError):
         listed = []
-    for name in listed if isinstance(listed, list) else []:
-        target = folder / str(name)
-        inside = target.parent.resolve() == base.joinpath(str(name)).parent
+    try:
+        journal = (folder / JOURNAL).read_text().splitlines()
+    except OSError:
+        journal = []
+    return [str(name) for name in listed] + journal if isinstance(listed, list) else journal
+
+
+def remove_own(folder: Path) -> bool:
+    """Delete from an emasim folder only the files its manifest or build journal lists, then
+    the journal, the marker and the folders left empty; anything else stays, with the folders
+    that hold it. An entry that leaves the folder, or reaches through a link, is skipped.
+    True when the folder is gone."""
+    base = folder.resolve()
+    for name in _listed(folder):
+        target = folder / name
+        inside = target.parent.resolve() == base.joinpath(name).parent
         if inside and (target.is_symlink() or target.is_file()):
             with contextlib.suppress(OSError):
                 target.unlink()  # a link itself, never what it points to
-    with contextlib.suppress(OSError):
-        (folder / MARKER).unlink()
+    for own in (JOURNAL, MARKER):
+        with contextlib.suppress(OSError):
+            (folder / own).unlink()
     for root, dirs, _ in os.walk(folder, topdown=False):
         for name in dirs:
             with contextlib.suppress(OSError):
@@ -209,11 +260,11 @@ def clean_leftovers(folder: Path) -> list[Path]:
     """Remove the temporaries that killed emasim processes left in ``folder``; return them.
 
     Only folders of the module's temporary pattern whose process no longer runs, and of
-    those only: a ``.tmp-`` one that holds the marker (a folder that process made with a fresh
-    name and filled, never published); of a ``.old-`` one (a published result being
-    replaced), the files of its manifest (:func:`remove_own`); an empty one (``os.rmdir``,
-    which cannot remove a file). A bare file is never removed: nothing could prove it
-    emasim's (write_file's temporaries are marker folders).
+    those only: of one that holds the marker (a ``.tmp-`` folder being built, or a ``.old-``
+    result being replaced), the files its build journal or manifest lists
+    (:func:`remove_own`; a file someone else put there keeps the folder); an empty one
+    (``os.rmdir``, which cannot remove a file). A bare file is never removed: nothing could
+    prove it emasim's (write_file's temporaries are marker folders).
     """
     removed = []
     if not folder.is_dir():
@@ -223,11 +274,9 @@ def clean_leftovers(folder: Path) -> list[Path]:
         if match is None or _alive(int(match["pid"])) or not entry.is_dir() or entry.is_symlink():
             continue
         with contextlib.suppress(OSError):
-            if is_emasim_folder(entry) and ".tmp-" in entry.name:
-                shutil.rmtree(entry)
-            elif is_emasim_folder(entry):
+            if is_emasim_folder(entry):
                 if not remove_own(entry):
-                    continue  # a user's file in it keeps it
+                    continue  # a file emasim did not create keeps it
             elif _is_empty_folder(entry):
                 os.rmdir(entry)  # killed before its marker: empty, and rmdir removes no file
             else:
@@ -295,20 +344,22 @@ def write_folder(
     try:
         write_marker(tmp, kind)
         write(tmp)
-        write_marker(tmp, kind, files=_files_in(tmp))
+        write_marker(tmp, kind, files=sorted(set(_listed(tmp)) & set(_files_in(tmp))))
+        (tmp / JOURNAL).unlink(missing_ok=True)
         candidates = [path] + [path.with_name(f"{path.name}-{n}") for n in range(2, _MAX_SUFFIX)]
         for candidate in candidates if unique else candidates[:1]:
             if _move_into_place(tmp, candidate, force, what, refuse=not unique):
                 return candidate
         raise OutputError(f"{what} {path}: no free folder name")
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove_own(tmp)  # what this process created there; anything else stays
         raise
 
 
 def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> None:
     """The marker that makes ``folder`` an emasim result: written first, then again with the
-    manifest of ``files`` emasim wrote (relative paths), which alone it may ever delete."""
+    manifest of ``files`` emasim wrote (relative paths, from the build journal), which alone
+    it may ever delete."""
     from . import __version__
 
     record = {"kind": kind, "emasim_version": __version__, "files": files or []}
@@ -357,9 +408,9 @@ def write_file(
     except OSError as err:
         raise _os_error(what, path, err) from None
     try:
-        write_marker(folder, "file", files=[path.name])
+        write_marker(folder, "file")
         tmp = folder / path.name
-        with open(tmp, "xb") as handle:
+        with new_file(tmp) as handle:
             if isinstance(content, Path):
                 with open(content, "rb") as source:
                     shutil.copyfileobj(source, handle)
@@ -376,7 +427,7 @@ def write_file(
     except OSError as err:
         raise _os_error(what, path, err) from None
     finally:
-        remove_own(folder)  # the temporary file (its manifest) and the marker
+        remove_own(folder)  # the temporary file (its journal) and the marker
     return path
 
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..output import json_text
+from ..output import json_text, write_new
 from . import frequency as fr
 from .plots import save_figure
 from .units import unit_of
@@ -99,7 +99,7 @@ def write_datasheet(acceptance, folder: Path) -> None:
     from jinja2 import Environment, select_autoescape
 
     sheet = acceptance.datasheet()
-    (folder / "datasheet.json").write_text(json_text(sheet))
+    write_new(folder / "datasheet.json", json_text(sheet))
     curves = acceptance.curves
     for (name, _, _), plot in zip(
         FIGURES, (plot_bode, plot_stiffness, plot_hysteresis), strict=True
@@ -137,4 +137,4 @@ def write_datasheet(acceptance, folder: Path) -> None:
             for k, v in sheet["battery"].items()
         },
     )
-    (folder / "report.html").write_text(html)
+    write_new(folder / "report.html", html)

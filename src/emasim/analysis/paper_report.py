@@ -19,7 +19,7 @@ from importlib import resources
 from pathlib import Path
 
 from .. import __version__
-from ..output import json_text
+from ..output import json_text, write_new
 from .pareto import equal_chatter_table
 from .report import (
     BENCH_SETTLING_BAND,
@@ -651,9 +651,9 @@ def write_report(
     parts += ["## Definitions", "\n".join(f"- {line}" for line in definitions())]
     parts.append(notes)
     text = "\n\n".join(parts) + "\n"
-    (folder / "report.md").write_text(text)
-    (folder / "report.html").write_text(report_html(text, "emasim reproduction"))
-    (folder / "tables.json").write_text(json_text(tables))
+    write_new(folder / "report.md", text)
+    write_new(folder / "report.html", report_html(text, "emasim reproduction"))
+    write_new(folder / "tables.json", json_text(tables))
 
 
 def report_html(markdown_text: str, title: str) -> str:

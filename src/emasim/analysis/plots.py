@@ -8,9 +8,12 @@ whole run's axis; a symmetric-log axis has ticks at whole decades, a few per sid
 """
 
 import math
+from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure  # files only: no pyplot, no display (a second of start-up)
+
+from ..output import new_file
 
 RPM_PER_RAD_S = 30.0 / np.pi
 
@@ -201,7 +204,8 @@ def save_figure(figure, path, dpi: int = 110) -> None:
     for ax in figure.axes:
         for artist in (*ax.get_lines(), *ax.child_axes):
             artist.set_in_layout(False)
-    figure.savefig(path, dpi=dpi)
+    with new_file(path) as handle:
+        figure.savefig(handle, dpi=dpi, format=Path(path).suffix.lstrip(".").lower() or "png")
 
 
 def plot_bench(results: dict, title: str | None = None):

@@ -47,6 +47,7 @@ from ..output import (
     slug,
     write_file,
     write_folder,
+    write_new,
 )
 from ..scenarios.loader import apply_setting, read_scenario_file, set_key, validate_scenario
 from .variation import Variation, parse_variation, samples
@@ -376,7 +377,7 @@ def open_folder(folder: Path, plan: Plan) -> None:
     check_folder(folder, force=False)
 
     def write(tmp: Path) -> None:
-        (tmp / STUDY_FILE).write_text(json_text(record))
+        write_new(tmp / STUDY_FILE, json_text(record))
         (tmp / RUNS_FOLDER).mkdir()
 
     write_folder(folder, write, kind="study")
@@ -524,8 +525,8 @@ def write_summary(folder: Path, study: Study) -> Path:
     }
 
     def write(tmp: Path) -> None:
-        (tmp / "summary.json").write_text(json_text({"diverged": diverged, "metrics": summary}))
-        (tmp / "summary.md").write_text(summary_markdown(summary, study.plan, diverged))
+        write_new(tmp / "summary.json", json_text({"diverged": diverged, "metrics": summary}))
+        write_new(tmp / "summary.md", summary_markdown(summary, study.plan, diverged))
         metrics = metric_columns(table, study.plan)
         grids = [v.name for v in study.plan.variations if v.grid is not None]
         with warnings.catch_warnings():

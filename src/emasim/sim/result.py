@@ -22,7 +22,7 @@ import pyarrow.parquet as pq
 import tomli_w
 
 from ..errors import InputError
-from ..output import RUNS_ROOT, fresh_folder, json_text, slug, write_folder
+from ..output import RUNS_ROOT, fresh_folder, json_text, new_file, slug, write_folder, write_new
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -119,7 +119,8 @@ class Result:
     def to_csv(self, path: str | Path) -> None:
         """The traces as CSV: a header of column names (each carries its unit), one row per
         recorded sample, full float64 precision."""
-        np.savetxt(path, self.data, delimiter=",", header=",".join(self.columns), comments="")
+        with new_file(path) as handle:
+            np.savetxt(handle, self.data, delimiter=",", header=",".join(self.columns), comments="")
 
     def to_mat(self, path: str | Path) -> None:
         """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
@@ -131,7 +132,8 @@ class Result:
         struct["units"] = {name: units.get(name, "") for name in self.columns}
         struct["scenario"] = self.scenario.get("name", "")
         struct["label"] = self.meta.get("label", "")
-        savemat(path, {"emasim": struct}, oned_as="column")
+        with new_file(path) as handle:
+            savemat(handle, {"emasim": struct}, oned_as="column")
 
     def plot(self):
         """The run's figure (emasim.analysis.plots.plot_result): a matplotlib Figure."""
@@ -147,7 +149,8 @@ class Result:
         if traces:
             path = folder / f"result.{trace_format}"
             if trace_format == "parquet":
-                pq.write_table(self._to_arrow(), path)
+                with new_file(path) as handle:
+                    pq.write_table(self._to_arrow(), handle)
             elif trace_format == "csv":
                 self.to_csv(path)
             elif trace_format == "mat":
@@ -297,6 +300,6 @@ def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:
 
 def write_records(folder: Path, metrics: dict, meta: dict, scenario: dict) -> None:
     """metrics.json, meta.json and scenario.toml of a run or comparison folder."""
-    (folder / "metrics.json").write_text(json_text(metrics))
-    (folder / "meta.json").write_text(json_text(meta))
-    (folder / "scenario.toml").write_text(tomli_w.dumps(scenario))
+    write_new(folder / "metrics.json", json_text(metrics))
+    write_new(folder / "meta.json", json_text(meta))
+    write_new(folder / "scenario.toml", tomli_w.dumps(scenario))
