@@ -54,6 +54,7 @@ import bench_acceptance
 import bench_study
 import numba
 import numpy as np
+from commands import STARTUP, process_seconds, user_environment
 from readme_figures import RESULTS, write_readme
 
 from emasim.control.registry import CONTROLLERS
@@ -68,18 +69,6 @@ MEMORY_S = (100.0, 1000.0)
 QUICK_MEMORY_S = 1.0
 BASELINE_S = 1e-3
 
-# Fresh processes timed for start-up: key -> (arguments after ``python -m emasim``, exit code).
-# ``{out}`` is a new folder for each process.
-STARTUP = {
-    "help": (["--help"], 0),
-    "list": (["list"], 0),
-    "input_error": (["run", "speed-step", "--set", "duration_ms=2"], 2),
-    "run_speed_step_pi": (["run", "speed-step", "-c", "speed=pi", "--out", "{out}/run"], 0),
-    "run_speed_step_pi_no_plot": (
-        ["run", "speed-step", "-c", "speed=pi", "--no-plot", "--out", "{out}/run"],
-        0,
-    ),
-}
 QUICK_STARTUP = ("help", "input_error")
 
 # Run in a fresh process: simulate speed-sine for each duration in argv, in turn, and print the
@@ -149,21 +138,6 @@ def controller_real_time_factors(runs: int = 3, duration_s: float | None = None)
     return out
 
 
-def process_seconds(args: list[str], expect: int = 0, env: dict | None = None) -> float:
-    """Wall time of one fresh ``python -m emasim ARGS`` process, run in a new temporary folder
-    (``{out}`` in ARGS names it); raise unless it exits with ``expect``."""
-    with tempfile.TemporaryDirectory() as out:
-        cmd = [sys.executable, "-m", "emasim", *(a.format(out=out) for a in args)]
-        start = time.perf_counter()
-        proc = subprocess.run(cmd, env=env, cwd=out, capture_output=True, text=True)
-        elapsed = time.perf_counter() - start
-    if proc.returncode != expect:
-        raise RuntimeError(
-            f"{' '.join(args)}: exit code {proc.returncode}, expected {expect}\n{proc.stderr}"
-        )
-    return elapsed
-
-
 def startup_seconds(keys=tuple(STARTUP), runs: int = 5) -> dict:
     """Median wall time of ``runs`` fresh processes of each STARTUP command (warm cache)."""
     return {
@@ -172,9 +146,7 @@ def startup_seconds(keys=tuple(STARTUP), runs: int = 5) -> dict:
 
 
 def fresh_process_seconds(cache_dir: str | None, *extra: str) -> float:
-    env = dict(os.environ)
-    if cache_dir is not None:
-        env["NUMBA_CACHE_DIR"] = cache_dir
+    env = user_environment(**({"NUMBA_CACHE_DIR": cache_dir} if cache_dir is not None else {}))
     return process_seconds(["run", "speed-step", *extra, "--out", "{out}/run"], env=env)
 
 

@@ -1,6 +1,6 @@
 """Paired speed of this tree against an earlier revision, in interleaved processes.
 
-    python benchmarks/bench_paired.py [--before REV] [--pairs 5] [--quick]
+    python benchmarks/bench_paired.py [--before REV] [--pairs 5] [--quick] [--commands]
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
 ``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder. Then
@@ -14,6 +14,11 @@ The script reports wall seconds per simulated second, the median of each tree, a
 median of the paired ratios (after / before; below 1 is faster). The two trees cannot share
 one process: numba types the record classes of ``emasim.sim.core`` by name, so two copies of
 one class in one process collide. ``--quick`` (CI) runs 0.05 s of each scenario, one pair.
+
+``--commands`` times whole command lines instead: each of COMMANDS (the start-up figures'
+commands of ``commands.STARTUP`` and the four-controller ``run speed-step``) as one fresh
+``python -m emasim`` process of each tree, interleaved the same way, after one warm-up process
+of each (numba's cache and the bytecode filled).
 """
 
 import argparse
@@ -28,9 +33,12 @@ import time
 from io import BytesIO
 from pathlib import Path
 
+from commands import STARTUP, process_seconds, user_environment
+
 ROOT = Path(__file__).resolve().parents[1]
 QUICK_S = 0.05
 MODES = ("plain", "progress")
+COMMANDS = {**STARTUP, "run_speed_step": (["run", "speed-step", "--out", "{out}/run"], 0)}
 
 
 def extract(rev: str, folder: Path) -> Path:
@@ -77,11 +85,40 @@ def run_tree(src: Path, duration_s: float | None) -> dict:
     return json.loads(done.stdout)
 
 
+def command_seconds(src: Path) -> dict:
+    """Wall seconds of one fresh process of each of COMMANDS, importing the tree ``src``."""
+    env = user_environment(PYTHONPATH=str(src))
+    return {key: process_seconds(args, expect, env) for key, (args, expect) in COMMANDS.items()}
+
+
+def interleaved(trees: dict, pairs: int, measure_one) -> dict:
+    """side -> [measure_one(tree) of each pair], before first in even pairs, after in odd."""
+    times = {side: [] for side in trees}
+    for i in range(pairs):
+        for side in ("before", "after") if i % 2 == 0 else ("after", "before"):
+            times[side].append(measure_one(trees[side]))
+    return times
+
+
+def print_medians(rows: list[tuple[str, list, list]]) -> None:
+    """One line per (name, before values, after values): both medians and the median of the
+    paired ratios."""
+    for name, before, after in rows:
+        ratio = statistics.median(a / b for a, b in zip(after, before, strict=True))
+        print(
+            f"{name:36s}  {statistics.median(before):10.4f}  "
+            f"{statistics.median(after):9.4f}  {ratio:.3f}"
+        )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", default="HEAD", help="git revision to compare against")
     parser.add_argument("--pairs", type=int, default=5, help="interleaved runs of each tree")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_S} s runs, one pair")
+    parser.add_argument(
+        "--commands", action="store_true", help="time whole command lines (module docstring)"
+    )
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--duration", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -91,23 +128,39 @@ def main() -> None:
     pairs, duration = (1, QUICK_S) if args.quick else (args.pairs, None)
     with tempfile.TemporaryDirectory() as folder:
         trees = {"before": extract(args.before, Path(folder)), "after": ROOT / "src"}
-        for src in trees.values():
-            run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
-        times = {side: [] for side in trees}
-        for i in range(pairs):  # before first, then after first: no side always goes second
-            for side in ("before", "after") if i % 2 == 0 else ("after", "before"):
-                times[side].append(run_tree(trees[side], duration))
+        if args.commands:
+            for src in trees.values():
+                command_seconds(src)  # numba's cache and the bytecode of each tree filled
+            times = interleaved(trees, pairs, command_seconds)
+        else:
+            for src in trees.values():
+                run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
+            times = interleaved(trees, pairs, lambda src: run_tree(src, duration))
     print(f"after: this tree; before: {args.before}; {pairs} interleaved pairs of processes")
-    print("scenario          mode      before s/s  after s/s  median after/before")
-    for name in times["before"][0]:
-        for mode in MODES:
-            before = [t[name][mode] for t in times["before"]]
-            after = [t[name][mode] for t in times["after"]]
-            ratio = statistics.median(a / b for a, b in zip(after, before, strict=True))
-            print(
-                f"{name:16s}  {mode:8s}  {statistics.median(before):10.4f}  "
-                f"{statistics.median(after):9.4f}  {ratio:.3f}"
+    if args.commands:
+        print(
+            f"{'command (wall s of a fresh process)':36s}  {'before':>10s}  {'after':>9s}  "
+            "median after/before"
+        )
+        print_medians(
+            [
+                (key, [t[key] for t in times["before"]], [t[key] for t in times["after"]])
+                for key in COMMANDS
+            ]
+        )
+        return
+    print(f"{'scenario, mode (s/s)':36s}  {'before':>10s}  {'after':>9s}  median after/before")
+    print_medians(
+        [
+            (
+                f"{name} {mode}",
+                [t[name][mode] for t in times["before"]],
+                [t[name][mode] for t in times["after"]],
             )
+            for name in times["before"][0]
+            for mode in MODES
+        ]
+    )
 
 
 if __name__ == "__main__":

@@ -323,6 +323,7 @@ def run(
             scenario, settings=setting or [], controllers=controller or [], label=label
         )
         # the compiled core (numba) loads only for a valid scenario
+        from .analysis.figure_process import figure_writer
         from .experiments.batch import run as run_any
         from .sim.cosim import check_fmu_trust
         from .sim.result import check_trace_format
@@ -333,14 +334,17 @@ def run(
             check_folder(out, force)  # refuse before spending the simulation time
         _notice_compile()
         progress = _LazyProgress(f"simulating {sc.name}")
-        try:
-            result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
-            by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}
-        finally:
-            progress.close()
-        for record in [result, *getattr(result, "results", {}).values()]:
-            record.meta["overrides"] = list(setting or [])  # for the plots' titles
-        folder = result.save(out, plot=plot, force=force, trace_format=trace_format)
+        with figure_writer(plot) as figures:  # imports matplotlib while this one simulates
+            try:
+                result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
+                by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}
+            finally:
+                progress.close()
+            for record in [result, *getattr(result, "results", {}).values()]:
+                record.meta["overrides"] = list(setting or [])  # for the plots' titles
+            folder = result.save(
+                out, plot=plot, force=force, trace_format=trace_format, figures=figures
+            )
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")

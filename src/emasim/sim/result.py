@@ -142,10 +142,17 @@ class Result:
         return plot_result(self)
 
     def write_files(
-        self, folder: Path, plot: bool = True, traces: bool = True, trace_format: str = "parquet"
+        self,
+        folder: Path,
+        plot: bool = True,
+        traces: bool = True,
+        trace_format: str = "parquet",
+        figures=None,
     ) -> None:
         """Write the run's files into an existing folder (see :meth:`save`); without
-        ``traces``, no trace file (a study's runs: the metrics and the scenario)."""
+        ``traces``, no trace file (a study's runs: the metrics and the scenario). ``figures``
+        draws the plot (emasim.analysis.figure_process: a FigureProcess, or by default
+        DrawHere); the caller waits for it before publishing the folder."""
         if traces:
             path = folder / f"result.{trace_format}"
             if trace_format == "parquet":
@@ -164,9 +171,7 @@ class Result:
             meta = {**meta, "run": self.description.to_json()}
         write_records(folder, self.metrics, meta, self.scenario)
         if plot:
-            from ..analysis.plots import save_figure
-
-            save_figure(self.plot(), folder / "plot.png")
+            _drawer(figures).save(self, folder / "plot.png")
 
     def save(
         self,
@@ -174,11 +179,13 @@ class Result:
         plot: bool = True,
         force: bool = False,
         trace_format: str = "parquet",
+        figures=None,
     ) -> Path:
         """Write the run folder atomically and return its path (see :func:`default_folder`
         when ``folder`` is None); ``force`` replaces an earlier emasim result there;
-        ``trace_format`` one of TRACE_FORMATS."""
-        return _save(self, folder, plot, force, "run", trace_format)
+        ``trace_format`` one of TRACE_FORMATS; ``figures`` draws the plot (see
+        :meth:`write_files`)."""
+        return _save(self, folder, plot, force, "run", trace_format, figures)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
@@ -218,18 +225,18 @@ class Comparison:
             self.results, f"{name} ({', '.join(overrides)})" if overrides else name
         )
 
-    def write_files(self, folder: Path, plot: bool = True, trace_format: str = "parquet") -> None:
+    def write_files(
+        self, folder: Path, plot: bool = True, trace_format: str = "parquet", figures=None
+    ) -> None:
         """Write every run into a sub-folder named by its label (each with its own plot), and
-        the overlay beside them."""
+        the overlay beside them (``figures``: see :meth:`Result.write_files`)."""
+        if plot:
+            _drawer(figures).save(self, folder / "comparison.png")  # the longest figure first
         for label, result in self.results.items():
             sub = folder / slug(label)
             sub.mkdir()
-            result.write_files(sub, plot=plot, trace_format=trace_format)
+            result.write_files(sub, plot=plot, trace_format=trace_format, figures=figures)
         write_records(folder, self.metrics, self.meta, self.scenario)
-        if plot:
-            from ..analysis.plots import save_figure
-
-            save_figure(self.plot(), folder / "comparison.png")
 
     def save(
         self,
@@ -237,9 +244,10 @@ class Comparison:
         plot: bool = True,
         force: bool = False,
         trace_format: str = "parquet",
+        figures=None,
     ) -> Path:
         """Write the comparison folder atomically and return its path (see :meth:`Result.save`)."""
-        return _save(self, folder, plot, force, "comparison", trace_format)
+        return _save(self, folder, plot, force, "comparison", trace_format, figures)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
@@ -263,20 +271,29 @@ def check_trace_format(trace_format: str) -> None:
         raise InputError(f"--format: one of {', '.join(TRACE_FORMATS)}, got {trace_format!r}")
 
 
-def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str) -> Path:
+def _drawer(figures):
+    """``figures``, or one that draws in this process."""
+    if figures is not None:
+        return figures
+    from ..analysis.figure_process import DrawHere
+
+    return DrawHere()
+
+
+def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str, figures):
     check_trace_format(trace_format)
     what = "compare" if kind == "comparison" else result.meta.get("label", "run")
     if folder is None:
         target, unique = default_folder(result.scenario, what), True
     else:
         target, unique = Path(folder), False
-    return write_folder(
-        target,
-        lambda tmp: result.write_files(tmp, plot, trace_format=trace_format),
-        force=force,
-        unique=unique,
-        kind=kind,
-    )
+    drawer = _drawer(figures)
+
+    def write(tmp: Path) -> None:
+        result.write_files(tmp, plot, trace_format=trace_format, figures=drawer)
+        drawer.wait()  # every figure is in the folder before it is published
+
+    return write_folder(target, write, force=force, unique=unique, kind=kind)
 
 
 def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:

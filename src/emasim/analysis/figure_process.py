@@ -1,0 +1,157 @@
+"""Figures drawn by a second process, which imports matplotlib while the first one simulates.
+
+Importing matplotlib and drawing a run's figure take about half a second of a single
+``emasim run`` of two seconds, and neither depends on the simulation until the very end. So
+the command line forks a *figure process* as soon as the scenario is valid: it imports
+``emasim.analysis.plots`` (matplotlib) on the second core while the first loads the compiled
+core and simulates. A result folder's writer then hands each figure to it (:meth:`save`: the
+run or comparison, pickled, and the path of its PNG) and goes on writing traces and metrics;
+before the folder is published, :meth:`wait` collects every figure, and re-raises in the
+first process whatever the drawing raised, so a failed figure fails the write as before.
+
+The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
+built, so the file is listed in that build's journal like every other. It ends when told
+(:meth:`close`), and on its own when the first process is gone: its jobs pipe then ends.
+Where ``fork`` is not available (or not safe: macOS, Windows), :func:`figure_writer` gives
+:class:`DrawHere`, which draws in the calling process; the files are the same either way.
+"""
+
+import contextlib
+import multiprocessing
+import pickle
+import queue
+import sys
+import threading
+from pathlib import Path
+
+CLOSE_S = 5.0  # how long close() lets the figure process finish before ending it
+
+
+class FigureProcessError(RuntimeError):
+    """The figure process ended before it drew every figure handed to it."""
+
+
+class DrawHere:
+    """Draw each figure in this process, at once (no second process)."""
+
+    def save(self, item, path: Path) -> None:
+        """Draw ``item.plot()`` (a Result or Comparison) and write it to ``path``."""
+        from .plots import save_figure
+
+        save_figure(item.plot(), path)
+
+    def wait(self) -> None:
+        """Every figure is written already."""
+
+    def close(self) -> None:
+        """Nothing to end."""
+
+
+class FigureProcess:
+    """A forked process that imports matplotlib now and draws the figures handed to it later.
+
+    Two one-way pipes: jobs (pickled ``(item, path)``, sent by a thread of this process, so
+    :meth:`save` never waits for the figure process to read) and answers (None, or the
+    exception drawing raised). Each process closes the ends it does not use, so the death of
+    either one is an end-of-file to the other, never a wait for a message half sent.
+    """
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("fork")
+        jobs_in, self._jobs = context.Pipe(duplex=False)
+        self._answers, answers_out = context.Pipe(duplex=False)
+        self._process = context.Process(
+            target=_serve, args=(jobs_in, self._jobs, answers_out, self._answers), daemon=True
+        )
+        self._process.start()
+        jobs_in.close()
+        answers_out.close()
+        self._outbox = queue.SimpleQueue()
+        self._sender = threading.Thread(target=self._send_all, daemon=True)
+        self._sender.start()
+        self._pending = 0
+
+    def _send_all(self) -> None:
+        """The sender thread: write each job to the pipe; stop at None or a closed pipe."""
+        while (job := self._outbox.get()) is not None:
+            try:
+                self._jobs.send_bytes(job)
+            except OSError:  # the figure process is gone: wait() says so
+                return
+
+    def save(self, item, path: Path) -> None:
+        """Hand ``item`` (pickled here, so an error in pickling it is raised here) and the PNG's
+        path to the figure process, and return at once."""
+        self._outbox.put(pickle.dumps((item, str(path)), protocol=pickle.HIGHEST_PROTOCOL))
+        self._pending += 1
+
+    def wait(self) -> None:
+        """Block until every figure handed over is written; re-raise what drawing one raised."""
+        while self._pending:
+            try:
+                error = self._answers.recv()
+            except EOFError:
+                self._process.join()
+                raise FigureProcessError(
+                    f"the figure process ended (exit code {self._process.exitcode}) with "
+                    f"{self._pending} figure(s) not drawn"
+                ) from None
+            self._pending -= 1
+            if error is not None:
+                self._pending = 0
+                raise error
+
+    def close(self) -> None:
+        """End the figure process: close the jobs pipe (its end-of-file tells it to stop) and
+        wait for it, ending it if it does not stop within a few seconds."""
+        self._outbox.put(None)
+        self._sender.join()
+        self._jobs.close()
+        self._process.join(timeout=CLOSE_S)
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join()
+        self._answers.close()
+
+
+def _serve(jobs, jobs_writer, answers, answers_reader) -> None:
+    """The figure process: close the parent's ends, import the plotting module, then draw
+    each job until the jobs pipe ends (the parent closed it, or is gone)."""
+    jobs_writer.close()
+    answers_reader.close()
+    from .plots import save_figure
+
+    while True:
+        try:
+            job = jobs.recv_bytes()
+        except EOFError:
+            return
+        try:
+            item, path = pickle.loads(job)
+            save_figure(item.plot(), Path(path))
+            answers.send(None)
+        except Exception as err:  # handed back to the writer, which raises it
+            try:
+                pickle.dumps(err)
+            except Exception:
+                err = RuntimeError(f"{type(err).__name__}: {err}")
+            answers.send(err)
+
+
+def can_fork() -> bool:
+    """True where a figure process can be forked safely (Linux)."""
+    return sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+
+
+@contextlib.contextmanager
+def figure_writer(plot: bool = True):
+    """A FigureProcess (where :func:`can_fork`; else DrawHere) for the block, closed after it;
+    None without ``plot``."""
+    if not plot:
+        yield None
+        return
+    writer = FigureProcess() if can_fork() else DrawHere()
+    try:
+        yield writer
+    finally:
+        writer.close()

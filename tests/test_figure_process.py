@@ -1,0 +1,77 @@
+"""The figure process (emasim.analysis.figure_process): the same files as drawing in place,
+its errors raised in the writer, and no hang when it dies.
+
+Each test forks a real figure process; nothing here is timed.
+"""
+
+import os
+
+import pytest
+
+from emasim.analysis.figure_process import (
+    DrawHere,
+    FigureProcess,
+    FigureProcessError,
+    can_fork,
+    figure_writer,
+)
+from emasim.output import foreign_files
+from emasim.scenarios.loader import load_scenario
+from emasim.sim.engine import simulate
+
+pytestmark = pytest.mark.skipif(not can_fork(), reason="the figure process needs fork (Linux)")
+
+
+class Broken:
+    """A figure source whose drawing raises."""
+
+    def plot(self):
+        raise ValueError("no such column: rudder_deg")
+
+
+class Dies:
+    """A figure source whose drawing ends the figure process."""
+
+    def plot(self):
+        os._exit(3)
+
+
+@pytest.fixture(scope="module")
+def result():
+    return simulate(load_scenario("speed-step", settings=["duration_s=0.02"]).setup())
+
+
+def test_a_saved_run_has_the_same_plot_drawn_here_or_by_the_figure_process(result, tmp_path):
+    here = result.save(tmp_path / "here", figures=DrawHere())
+    with figure_writer() as figures:
+        assert isinstance(figures, FigureProcess)
+        there = result.save(tmp_path / "there", figures=figures)
+    assert (here / "plot.png").read_bytes() == (there / "plot.png").read_bytes()
+    assert foreign_files(there) == []  # the child's PNG is in the build's journal
+
+
+def test_an_error_in_drawing_is_raised_by_wait(tmp_path):
+    with figure_writer() as figures:
+        figures.save(Broken(), tmp_path / "x.png")
+        with pytest.raises(ValueError, match="no such column"):
+            figures.wait()
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_a_figure_process_that_dies_is_an_error_not_a_hang(tmp_path):
+    with figure_writer() as figures:
+        figures.save(Dies(), tmp_path / "x.png")
+        with pytest.raises(FigureProcessError, match="exit code 3"):
+            figures.wait()
+
+
+def test_a_failed_figure_fails_the_save_and_leaves_no_folder(result, tmp_path, monkeypatch):
+    monkeypatch.setattr(type(result), "plot", Broken.plot)
+    with figure_writer() as figures, pytest.raises(ValueError, match="no such column"):
+        result.save(tmp_path / "run", figures=figures)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_without_plots_there_is_no_figure_process():
+    with figure_writer(plot=False) as figures:
+        assert figures is None
