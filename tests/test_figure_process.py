@@ -4,6 +4,7 @@ its errors raised in the writer, and no hang when it dies.
 Each test forks a real figure process; nothing here is timed.
 """
 
+import dataclasses
 import os
 
 import pytest
@@ -22,18 +23,14 @@ from emasim.sim.engine import simulate
 pytestmark = pytest.mark.skipif(not can_fork(), reason="the figure process needs fork (Linux)")
 
 
-class Broken:
-    """A figure source whose drawing raises."""
-
-    def plot(self):
-        raise ValueError("no such column: rudder_deg")
+def broken():
+    """A figure whose drawing raises."""
+    raise ValueError("no such column: rudder_deg")
 
 
-class Dies:
-    """A figure source whose drawing ends the figure process."""
-
-    def plot(self):
-        os._exit(3)
+def dies():
+    """A figure whose drawing ends the figure process."""
+    os._exit(3)
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +49,7 @@ def test_a_saved_run_has_the_same_plot_drawn_here_or_by_the_figure_process(resul
 
 def test_an_error_in_drawing_is_raised_by_wait(tmp_path):
     with figure_writer() as figures:
-        figures.save(Broken(), tmp_path / "x.png")
+        figures.save(broken, tmp_path / "x.png")
         with pytest.raises(ValueError, match="no such column"):
             figures.wait()
     assert not (tmp_path / "x.png").exists()
@@ -60,15 +57,19 @@ def test_an_error_in_drawing_is_raised_by_wait(tmp_path):
 
 def test_a_figure_process_that_dies_is_an_error_not_a_hang(tmp_path):
     with figure_writer() as figures:
-        figures.save(Dies(), tmp_path / "x.png")
+        figures.save(dies, tmp_path / "x.png")
         with pytest.raises(FigureProcessError, match="exit code 3"):
             figures.wait()
 
 
-def test_a_failed_figure_fails_the_save_and_leaves_no_folder(result, tmp_path, monkeypatch):
-    monkeypatch.setattr(type(result), "plot", Broken.plot)
-    with figure_writer() as figures, pytest.raises(ValueError, match="no such column"):
-        result.save(tmp_path / "run", figures=figures)
+def test_a_failed_figure_fails_the_save_and_leaves_no_folder(result, tmp_path):
+    """A run without the columns its plot reads: the same error as drawing it here."""
+    bad = dataclasses.replace(result, columns=result.columns[:1], data=result.data[:, :1])
+    with pytest.raises(KeyError, match="no column") as here:
+        bad.save(tmp_path / "here", figures=DrawHere())
+    with figure_writer() as figures, pytest.raises(KeyError) as there:
+        bad.save(tmp_path / "there", figures=figures)
+    assert str(there.value) == str(here.value)
     assert list(tmp_path.iterdir()) == []
 
 

@@ -5,7 +5,8 @@ Importing matplotlib and drawing a run's figure take about half a second of a si
 the command line forks a *figure process* as soon as the scenario is valid: it imports
 ``emasim.analysis.plots`` (matplotlib) on the second core while the first loads the compiled
 core and simulates. A result folder's writer then hands each figure to it (:meth:`save`: the
-run or comparison, pickled, and the path of its PNG) and goes on writing traces and metrics;
+function that draws it, pickled, and the path of its PNG) and goes on writing traces and
+metrics, or simulating;
 before the folder is published, :meth:`wait` collects every figure, and re-raises in the
 first process whatever the drawing raised, so a failed figure fails the write as before.
 
@@ -34,11 +35,11 @@ class FigureProcessError(RuntimeError):
 class DrawHere:
     """Draw each figure in this process, at once (no second process)."""
 
-    def save(self, item, path: Path) -> None:
-        """Draw ``item.plot()`` (a Result or Comparison) and write it to ``path``."""
+    def save(self, draw, path: Path) -> None:
+        """Write the figure ``draw()`` returns (a matplotlib Figure) to ``path``."""
         from .plots import save_figure
 
-        save_figure(item.plot(), path)
+        save_figure(draw(), path)
 
     def wait(self) -> None:
         """Every figure is written already."""
@@ -50,7 +51,7 @@ class DrawHere:
 class FigureProcess:
     """A forked process that imports matplotlib now and draws the figures handed to it later.
 
-    Two one-way pipes: jobs (pickled ``(item, path)``, sent by a thread of this process, so
+    Two one-way pipes: jobs (pickled ``(draw, path)``, sent by a thread of this process, so
     :meth:`save` never waits for the figure process to read) and answers (None, or the
     exception drawing raised). Each process closes the ends it does not use, so the death of
     either one is an end-of-file to the other, never a wait for a message half sent.
@@ -79,10 +80,12 @@ class FigureProcess:
             except OSError:  # the figure process is gone: wait() says so
                 return
 
-    def save(self, item, path: Path) -> None:
-        """Hand ``item`` (pickled here, so an error in pickling it is raised here) and the PNG's
-        path to the figure process, and return at once."""
-        self._outbox.put(pickle.dumps((item, str(path)), protocol=pickle.HIGHEST_PROTOCOL))
+    def save(self, draw, path: Path) -> None:
+        """Hand ``draw`` (a function of no arguments that returns the Figure: a bound method
+        such as ``Result.plot``, or a ``functools.partial`` of a plotting function; pickled
+        here, so an error in pickling it is raised here) and the PNG's path to the figure
+        process, and return at once."""
+        self._outbox.put(pickle.dumps((draw, str(path)), protocol=pickle.HIGHEST_PROTOCOL))
         self._pending += 1
 
     def wait(self) -> None:
@@ -127,8 +130,8 @@ def _serve(jobs, jobs_writer, answers, answers_reader) -> None:
         except EOFError:
             return
         try:
-            item, path = pickle.loads(job)
-            save_figure(item.plot(), Path(path))
+            draw, path = pickle.loads(job)
+            save_figure(draw(), Path(path))
             answers.send(None)
         except Exception as err:  # handed back to the writer, which raises it
             try:

@@ -171,7 +171,7 @@ class Result:
             meta = {**meta, "run": self.description.to_json()}
         write_records(folder, self.metrics, meta, self.scenario)
         if plot:
-            _drawer(figures).save(self, folder / "plot.png")
+            _drawer(figures).save(self.plot, folder / "plot.png")
 
     def save(
         self,
@@ -231,7 +231,7 @@ class Comparison:
         """Write every run into a sub-folder named by its label (each with its own plot), and
         the overlay beside them (``figures``: see :meth:`Result.write_files`)."""
         if plot:
-            _drawer(figures).save(self, folder / "comparison.png")  # the longest figure first
+            _drawer(figures).save(self.plot, folder / "comparison.png")  # the longest first
         for label, result in self.results.items():
             sub = folder / slug(label)
             sub.mkdir()
