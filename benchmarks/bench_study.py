@@ -7,6 +7,9 @@ per run), SCALING_S simulated each, through ``run_study`` on a LocalCluster of o
 process and on one of two, both started (and their compiled code loaded) before timing;
 repeated REPEATS times, interleaved, each into a fresh folder; the median wall time of each.
 Throughput = simulated seconds of all runs / wall seconds; speed-up = 2 workers / 1 worker.
+Each study is timed twice: to its last run's end (``progress`` told every run is done: the
+runs, which the workers share) and to its return (with the summary's table and figure, which
+the client draws alone after the runs, the same on any number of workers).
 Monte Carlo: the wall time of the robustness study of bench-step (emasim.experiments.robustness:
 MC_RUNS runs, the bench's whole plant uncertainty) for each controller set alone, on a
 LocalCluster of two workers, cluster start included: what ``emasim reproduce --robustness``
@@ -44,15 +47,26 @@ def scaling_spec(runs: int, duration_s: float) -> StudySpec:
 
 
 def _timed_study(spec: StudySpec, folder: Path, **where) -> float:
+    return _timed_phases(spec, folder, **where)[1]
+
+
+def _timed_phases(spec: StudySpec, folder: Path, **where) -> tuple[float, float]:
+    """(seconds to the last run's end, seconds to run_study's return) of one study."""
+    runs_done = [float("nan")]
+
+    def progress(done: int, total: int) -> None:
+        if done == total:
+            runs_done[0] = time.perf_counter()
+
     start = time.perf_counter()
-    run_study(spec, folder, **where)
-    return time.perf_counter() - start
+    run_study(spec, folder, progress=progress, **where)
+    return runs_done[0] - start, time.perf_counter() - start
 
 
 def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
     """Median wall time of the same study on 1 and on 2 worker processes (module docstring)."""
     spec = scaling_spec(runs, duration_s)
-    times = {1: [], 2: []}
+    times, runs_times = {1: [], 2: []}, {1: [], 2: []}
     with (
         tempfile.TemporaryDirectory() as tmp,
         dask_client(workers=1) as one,
@@ -67,8 +81,11 @@ def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
         for k in range(repeats):
             for workers, client in clients.items():
                 folder = Path(tmp) / f"run-{workers}-{k}"
-                times[workers].append(_timed_study(spec, folder, client=client))
+                runs_s, study_s = _timed_phases(spec, folder, client=client)
+                runs_times[workers].append(runs_s)
+                times[workers].append(study_s)
     one_s, two_s = statistics.median(times[1]), statistics.median(times[2])
+    one_runs_s, two_runs_s = statistics.median(runs_times[1]), statistics.median(runs_times[2])
     simulated = runs * duration_s
     return {
         "scenario": SCENARIO,
@@ -79,6 +96,9 @@ def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
         "one_worker_sim_s_per_s": simulated / one_s,
         "two_workers_sim_s_per_s": simulated / two_s,
         "speedup": one_s / two_s,
+        "one_worker_runs_s": one_runs_s,
+        "two_workers_runs_s": two_runs_s,
+        "runs_speedup": one_runs_s / two_runs_s,
     }
 
 
@@ -108,7 +128,9 @@ def report(scaling: dict, mc: dict) -> None:
         f"study of {scaling['runs']} x {scaling['duration_s']:g} s of {scaling['scenario']}: "
         f"1 worker {scaling['one_worker_s']:.2f} s ({scaling['one_worker_sim_s_per_s']:.2f} "
         f"sim s/s), 2 workers {scaling['two_workers_s']:.2f} s "
-        f"({scaling['two_workers_sim_s_per_s']:.2f} sim s/s), speed-up {scaling['speedup']:.2f}"
+        f"({scaling['two_workers_sim_s_per_s']:.2f} sim s/s), speed-up {scaling['speedup']:.2f}; "
+        f"the runs alone: {scaling['one_worker_runs_s']:.2f} s against "
+        f"{scaling['two_workers_runs_s']:.2f} s, speed-up {scaling['runs_speedup']:.2f}"
     )
     for label in LABELS if mc is not None else ():
         print(

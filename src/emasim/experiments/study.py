@@ -313,6 +313,7 @@ def run_study(
     ``scheduler``, else to a LocalCluster of ``workers`` processes (default one per core).
     ``progress(done, total)`` is called as runs finish.
     """
+    from .. import NUMBA_CACHE_DIR, numba_cache
     from .batch import dask_client, map_runs
 
     plan = plan_study(spec)
@@ -348,8 +349,9 @@ def run_study(
                 if client
                 else dask_client(scheduler, workers) as used
             ):
-                try:
-                    map_runs(run_and_write, jobs, used, on_done, first_alone=True)
+                try:  # one run first only to compile: with a warm cache, all at once
+                    cold = numba_cache.is_cold(NUMBA_CACHE_DIR)
+                    map_runs(run_and_write, jobs, used, on_done, first_alone=cold)
                 finally:
                     write_table(folder, rows, plan)  # every run that finished
         table = as_frame(rows, plan)
