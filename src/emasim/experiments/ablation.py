@@ -101,6 +101,16 @@ def ablation(
     gives the last stage's metrics when the scenario itself has already run; ``labels``, when
     given, the controller sets to run (the ablation's tables compare PID and the hybrid)."""
     known = known or {}
+    runs = ablation_runs(scenarios, known, labels)
+    results = run_all([run[3] for run in runs], labels=[run[2] for run in runs])
+    return ablation_table(scenarios, runs, results, known, labels)
+
+
+def ablation_runs(
+    scenarios: dict[str, Scenario], known=(), labels: tuple[str, ...] = ()
+) -> list[tuple[str, str, str, Scenario]]:
+    """The ablation's runs, (experiment, stage, label, single-set scenario), of every stage
+    of each scenario but the last stage of the experiments in ``known`` (already run)."""
     runs = []
     for name, scenario in scenarios.items():
         for stage, staged in stage_scenarios(scenario):
@@ -111,7 +121,18 @@ def ablation(
                 for label, single in staged.variants()
                 if not labels or label in labels
             )
-    results = run_all([run[3] for run in runs], labels=[run[2] for run in runs])
+    return runs
+
+
+def ablation_table(
+    scenarios: dict[str, Scenario],
+    runs: list[tuple],
+    results: list,
+    known: dict,
+    labels: tuple[str, ...] = (),
+) -> dict:
+    """{experiment: {stage: {label: metrics}}} from the Results of :func:`ablation_runs`'
+    ``runs`` and the ``known`` metrics of the last stage (see :func:`ablation`)."""
     out = {name: {stage: {} for stage, _ in STAGES} for name in scenarios}
     for (name, stage, label, _), result in zip(runs, results, strict=True):
         out[name][stage][label] = result.metrics

@@ -127,10 +127,12 @@ def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progre
 
     ``labels`` name the runs (one per scenario); ``trust_fmu`` as in ``run_scenario``;
     ``client`` a Dask client (default: threads in this process); ``progress`` is told the
-    fraction of runs done after each run."""
+    fraction of runs done after each run. The runs start longest simulated time first, so
+    that the last to end is a short one and no core waits long for it."""
     scenarios = list(scenarios)
     labels = list(labels) if labels is not None else [None] * len(scenarios)
-    jobs = [(s, trust_fmu, label) for s, label in zip(scenarios, labels, strict=True)]
+    order = sorted(range(len(scenarios)), key=lambda i: -scenarios[i].duration_s)
+    jobs = [(scenarios[i], trust_fmu, labels[i]) for i in order]
     done = [0]
 
     def on_done(_, __):
@@ -138,10 +140,12 @@ def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progre
         if progress is not None:
             progress(done[0] / len(jobs))
 
-    if client is not None:
-        return map_runs(_run, jobs, client, on_done)
-    with dask_client(processes=False) as local:
-        return map_runs(_run, jobs, local, on_done)
+    with contextlib.nullcontext(client) if client else dask_client(processes=False) as used:
+        started = map_runs(_run, jobs, used, on_done)
+    results = [None] * len(jobs)
+    for i, result in zip(order, started, strict=True):
+        results[i] = result
+    return results
 
 
 def _run(scenario, trust_fmu, label):
@@ -185,11 +189,18 @@ def run_comparison(
         client=client,
         progress=progress,
     )
+    return comparison_of(scenario, runs, time.perf_counter() - start)
+
+
+def comparison_of(scenario: "Scenario", runs: list[Result], wall_s: float) -> Comparison:
+    """The Comparison of ``runs``, the Results of ``scenario.variants()`` in their order.
+    ``wall_s`` is the wall time the runs took side by side (the meta's ``simulation_wall_s``:
+    not the sum of their times, which is ``runs_wall_sum_s``)."""
+    variants = scenario.variants()
     results = dict(zip((label for label, _ in variants), runs, strict=True))
-    wall = time.perf_counter() - start  # the runs side by side: not the sum of their times
-    meta = meta_of(scenario, wall)
+    meta = meta_of(scenario, wall_s)
     meta["runs_wall_sum_s"] = sum(r.meta["simulation_wall_s"] for r in results.values())
-    meta["real_time_factor"] = wall / (scenario.duration_s * len(variants))
+    meta["real_time_factor"] = wall_s / (scenario.duration_s * len(variants))
     return Comparison(
         results, scenario=scenario.model_dump(mode="json", exclude_none=True), meta=meta
     )

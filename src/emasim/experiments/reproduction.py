@@ -2,7 +2,10 @@
 clearance sweep and the ablation of the bench's elements, rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
+import time
+from functools import partial
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..analysis.paper_report import (
     EXPERIMENTS,
@@ -18,17 +21,20 @@ from ..analysis.paper_report import (
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
 from . import wear
-from .ablation import STAGES, ablation
-from .batch import run_all, run_comparison
+from .ablation import STAGES, ablation_runs, ablation_table
+from .batch import comparison_of, run_all
 from .robustness import UNCERTAINTY, latest, run_robustness
+
+if TYPE_CHECKING:
+    from ..scenarios.schema import Scenario
 
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
 
 
-def clearance_sweep() -> list[dict]:
-    """cosim-step at every hinge clearance of SWEEP_CLEARANCES_MM, the whole run long (its
-    limit cycle starts about 2 s in): steady RMS error and vibration amplitude of the rudder,
-    per controller set; every run of the sweep at once (run_all)."""
+def sweep_runs() -> list[tuple[float, str, "Scenario"]]:
+    """The hinge clearance sweep's runs, (clearance, label, single-set scenario): cosim-step
+    at every hinge clearance of SWEEP_CLEARANCES_MM, the whole run long (its limit cycle starts
+    about 2 s in), for every controller set."""
     runs = []
     for clearance in SWEEP_CLEARANCES_MM:
         scenario = load_scenario(
@@ -36,7 +42,12 @@ def clearance_sweep() -> list[dict]:
             settings=[f"plant.linkage.hinge_clearance_mm=[{', '.join([str(clearance)] * 4)}]"],
         )
         runs += [(clearance, label, variant) for label, variant in scenario.variants()]
-    results = run_all([run[2] for run in runs], labels=[run[1] for run in runs])
+    return runs
+
+
+def sweep_rows(runs: list[tuple], results: list) -> list[dict]:
+    """The sweep's table from the Results of :func:`sweep_runs`' ``runs``: steady RMS error
+    and vibration amplitude of the rudder, per clearance and controller set."""
     return [
         {
             "clearance_mm": clearance,
@@ -46,6 +57,73 @@ def clearance_sweep() -> list[dict]:
         }
         for (clearance, label, _), result in zip(runs, results, strict=True)
     ]
+
+
+def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict, dict]:
+    """({name: Comparison}, the report's tables) of the ``chosen`` experiments, with the
+    clearance sweep (when cosim-step is among them) and the ablation of the bench ones.
+
+    Every run goes into one batch (run_all, longest first), so both cores stay busy to the
+    end instead of waiting at the end of each experiment for its last run. Each comparison's
+    ``simulation_wall_s`` is therefore the whole batch's wall time."""
+    labels = (PID_LABEL, HYBRID_LABEL)
+    ablated = {n: chosen[n] for n in ABLATED if n in chosen} if with_ablation else {}
+    groups = {
+        "comparisons": [(name, *v) for name, sc in chosen.items() for v in sc.variants()],
+        "sweep": sweep_runs() if "cosim-step" in chosen else [],
+        "ablation": ablation_runs(ablated, ablated, labels=labels),
+    }
+    runs = [run for group in groups.values() for run in group]
+    start = time.perf_counter()
+    results = iter(
+        run_all([run[-1] for run in runs], labels=[run[-2] for run in runs], progress=progress)
+    )
+    wall_s = time.perf_counter() - start
+    done = {key: [next(results) for _ in group] for key, group in groups.items()}
+    by_name = {name: [] for name in chosen}
+    for (name, *_), result in zip(groups["comparisons"], done["comparisons"], strict=True):
+        by_name[name].append(result)
+    comparisons = {name: comparison_of(chosen[name], by_name[name], wall_s) for name in chosen}
+    tables = build_tables({name: c.metrics for name, c in comparisons.items()})
+    if groups["sweep"]:
+        tables["clearance_sweep"] = sweep_rows(groups["sweep"], done["sweep"])
+    if ablated:
+        known = {name: comparisons[name].metrics for name in ablated}
+        stages = ablation_table(ablated, groups["ablation"], done["ablation"], known, labels)
+        tables["ablation"] = ablation_rows(stages)
+    return comparisons, tables
+
+
+def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> dict:
+    """Hand every figure of the report to ``drawer`` (emasim.analysis.figure_process), the
+    heaviest first; return {section: [(title, path in the report folder)]}."""
+    from ..analysis.plots import (
+        plot_bench,
+        plot_clearance_sweep,
+        plot_comparison,
+        plot_pareto,
+        plot_wear,
+    )
+
+    figures = {}
+    for name, comparison in comparisons.items():
+        plot = plot_bench if name.startswith("bench") or name == "cosim-step" else plot_comparison
+        path = f"figures/{name}.png"
+        drawer.save(partial(plot, comparison.results, name), folder / path)
+        figures[name] = [(name, path)]
+        fronts = fronts_of(comparison.scenario.get("tuning"))
+        if len(fronts) > 1:
+            path = f"figures/{name}-pareto.png"
+            drawer.save(partial(plot_pareto, fronts), folder / path)
+            figures[name].append(("tracking against chattering", path))
+    if "wear" in tables:
+        drawer.save(partial(plot_wear, tables["wear"]), folder / "figures/wear.png")
+        figures["wear"] = [("wear", "figures/wear.png")]
+    if "clearance_sweep" in tables:
+        path = "figures/clearance-sweep.png"
+        drawer.save(partial(plot_clearance_sweep, tables["clearance_sweep"]), folder / path)
+        figures["cosim-step"].append(("clearance sweep", path))
+    return figures
 
 
 def _counted(progress):
@@ -72,35 +150,15 @@ def reproduce(
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
     The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
     """
-    from ..analysis.plots import (
-        plot_bench,
-        plot_clearance_sweep,
-        plot_comparison,
-        plot_pareto,
-        plot_wear,
-        save_figure,
-    )
+    from ..analysis.figure_process import figure_writer
 
     if out is not None:
         check_folder(Path(out), force)
 
-    chosen = [e for e in EXPERIMENTS if not only or e.scenario in only]
-    comparisons = {}
-    for i, exp in enumerate(chosen):
-        comparisons[exp.scenario] = run_comparison(load_scenario(exp.scenario))
-        if progress is not None:
-            progress((i + 1) / len(chosen))
-    metrics = {name: c.metrics for name, c in comparisons.items()}
-    tables = build_tables(metrics)
-    if "cosim-step" in comparisons:
-        tables["clearance_sweep"] = clearance_sweep()
-    ablated = {name: comparisons[name] for name in ABLATED if name in comparisons}
-    if with_ablation and ablated:
-        known = {name: c.metrics for name, c in ablated.items()}
-        scenarios = {name: load_scenario(name) for name in ablated}
-        runs = ablation(scenarios, known, labels=(PID_LABEL, HYBRID_LABEL))
-        tables["ablation"] = ablation_rows(runs)
-
+    chosen = {
+        e.scenario: load_scenario(e.scenario) for e in EXPERIMENTS if not only or e.scenario in only
+    }
+    comparisons, tables = _run_experiments(chosen, with_ablation, progress)
     if "headline" in tables:
         if robustness_runs is not None:
             tables["robustness"] = run_robustness(robustness_runs, progress=_counted(progress))
@@ -114,39 +172,23 @@ def reproduce(
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
         (folder / "runs").mkdir()
-        figures = {}
-        for name, comparison in comparisons.items():
-            run_folder = folder / "runs" / name
-            run_folder.mkdir()
-            comparison.write_files(run_folder, plot=False)
-            if name.startswith("bench") or name == "cosim-step":
-                fig = plot_bench(comparison.results, name)
-            else:
-                fig = plot_comparison(comparison.results, name)
-            path = f"figures/{name}.png"
-            save_figure(fig, folder / path)
-            figures[name] = [(name, path)]
-            fronts = fronts_of(comparison.scenario.get("tuning"))
-            if len(fronts) > 1:
-                path = f"figures/{name}-pareto.png"
-                save_figure(plot_pareto(fronts), folder / path)
-                figures[name].append(("tracking against chattering", path))
-        if "wear" in tables:
-            save_figure(plot_wear(tables["wear"]), folder / "figures/wear.png")
-            figures["wear"] = [("wear", "figures/wear.png")]
-        if "clearance_sweep" in tables:
-            path = "figures/clearance-sweep.png"
-            save_figure(plot_clearance_sweep(tables["clearance_sweep"]), folder / path)
-            figures["cosim-step"].append(("clearance sweep", path))
-        write_report(
-            folder,
-            tables,
-            {n: c.scenario for n, c in comparisons.items()},
-            figures,
-            notes(),
-            stages=STAGES,
-            uncertainty=UNCERTAINTY,
-        )
+        # the figure process draws every figure while this process writes the runs and text
+        with figure_writer() as drawer:
+            figures = _hand_figures(comparisons, tables, folder, drawer)
+            for name, comparison in comparisons.items():
+                run_folder = folder / "runs" / name
+                run_folder.mkdir()
+                comparison.write_files(run_folder, plot=False)
+            write_report(
+                folder,
+                tables,
+                {n: c.scenario for n, c in comparisons.items()},
+                figures,
+                notes(),
+                stages=STAGES,
+                uncertainty=UNCERTAINTY,
+            )
+            drawer.wait()
 
     if out is None:
         what = "only-" + "-".join(only) if only else "all"
