@@ -1,5 +1,7 @@
 """Runs in parallel (emasim.experiments.batch) give exactly what they give one by one."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -45,3 +47,13 @@ def test_runs_start_longest_first_and_come_back_in_the_order_given():
     assert recording.sent == sorted(durations, reverse=True)
     assert [r.meta["label"] for r in results] == [str(d) for d in durations]
     assert [r["t_s"][-1] for r in results] == pytest.approx([d - 1e-4 for d in durations])
+
+
+def test_a_warning_in_a_worker_process_is_one_line(capfd):
+    """emasim's own worker processes show a Python warning as the command line does: one
+    ``warning:`` line, not Python's two lines with the source path (the worker's stderr is
+    this process's, which capfd reads)."""
+    with dask_client(workers=1) as client:
+        client.submit(warnings.warn, "eq. 37 does not hold", UserWarning, pure=False).result()
+    lines = [line for line in capfd.readouterr().err.splitlines() if "eq. 37" in line]
+    assert lines == ["warning: eq. 37 does not hold"]

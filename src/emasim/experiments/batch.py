@@ -41,7 +41,8 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, proces
     """A ``dask.distributed.Client``: to the cluster at ``scheduler``, else to a LocalCluster of
     ``workers`` (default: one per core) single-threaded worker processes, or with
     ``processes=False`` one worker of that many threads in this process. A cluster it started
-    is closed on exit."""
+    is closed on exit; its worker processes show Python warnings as one line each
+    (emasim.experiments.worker_setup)."""
     from dask.distributed import Client, LocalCluster
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
@@ -63,6 +64,10 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, proces
         silence_logs=logging.ERROR,
     )
     with cluster, Client(cluster) as client:
+        if processes:
+            from .worker_setup import OneLineWarnings
+
+            client.register_plugin(OneLineWarnings())
         yield client
 
 

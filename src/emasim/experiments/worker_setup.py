@@ -1,0 +1,28 @@
+"""What emasim's own Dask worker processes set up when they start (a Dask worker plugin).
+
+A worker process does not run the command line's set-up, so a Python warning raised in a run
+there (a controller's design check, say) would reach the terminal as Python's raw two-line
+warning, with its source path and line. :class:`OneLineWarnings` makes it the command line's
+one line, ``warning: <message>``, on the worker's stderr. Python's default filter still shows
+each distinct warning once per process. :func:`emasim.experiments.batch.dask_client` registers
+it on the LocalClusters it starts, never on a cluster it only connects to.
+"""
+
+import sys
+import warnings
+
+from distributed import WorkerPlugin
+
+
+def one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` as one line on stderr: the message, without the source."""
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+class OneLineWarnings(WorkerPlugin):
+    """Show every Python warning in the worker process as one ``warning:`` line."""
+
+    name = "emasim-one-line-warnings"
+
+    def setup(self, worker) -> None:
+        warnings.showwarning = one_line_warning
