@@ -1,6 +1,7 @@
 """Paired speed of this tree against an earlier revision, in interleaved processes.
 
     python benchmarks/bench_paired.py [--before REV] [--pairs 5] [--quick] [--commands]
+                                      [--reproduce]
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
 ``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder. Then
@@ -18,7 +19,8 @@ one class in one process collide. ``--quick`` (CI) runs 0.05 s of each scenario,
 ``--commands`` times whole command lines instead: each of COMMANDS (the start-up figures'
 commands of ``commands.STARTUP`` and the four-controller ``run speed-step``) as one fresh
 ``python -m emasim`` process of each tree, interleaved the same way, after one warm-up process
-of each (numba's cache and the bytecode filled).
+of each (numba's cache and the bytecode filled). ``--reproduce`` times ``emasim reproduce``
+(every paper experiment and the report, about half a minute) the same way.
 """
 
 import argparse
@@ -39,6 +41,7 @@ ROOT = Path(__file__).resolve().parents[1]
 QUICK_S = 0.05
 MODES = ("plain", "progress")
 COMMANDS = {**STARTUP, "run_speed_step": (["run", "speed-step", "--out", "{out}/run"], 0)}
+REPRODUCE = {"reproduce": (["reproduce", "--out", "{out}/report"], 0)}
 
 
 def extract(rev: str, folder: Path) -> Path:
@@ -85,10 +88,11 @@ def run_tree(src: Path, duration_s: float | None) -> dict:
     return json.loads(done.stdout)
 
 
-def command_seconds(src: Path) -> dict:
-    """Wall seconds of one fresh process of each of COMMANDS, importing the tree ``src``."""
+def command_seconds(src: Path, commands: dict) -> dict:
+    """Wall seconds of one fresh process of each of ``commands`` (key -> (arguments, exit
+    code)), importing the tree ``src``."""
     env = user_environment(PYTHONPATH=str(src))
-    return {key: process_seconds(args, expect, env) for key, (args, expect) in COMMANDS.items()}
+    return {key: process_seconds(args, expect, env) for key, (args, expect) in commands.items()}
 
 
 def interleaved(trees: dict, pairs: int, measure_one) -> dict:
@@ -119,6 +123,7 @@ def main() -> None:
     parser.add_argument(
         "--commands", action="store_true", help="time whole command lines (module docstring)"
     )
+    parser.add_argument("--reproduce", action="store_true", help="time `emasim reproduce`")
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--duration", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -128,16 +133,17 @@ def main() -> None:
     pairs, duration = (1, QUICK_S) if args.quick else (args.pairs, None)
     with tempfile.TemporaryDirectory() as folder:
         trees = {"before": extract(args.before, Path(folder)), "after": ROOT / "src"}
-        if args.commands:
+        commands = REPRODUCE if args.reproduce else COMMANDS if args.commands else None
+        if commands:
             for src in trees.values():
-                command_seconds(src)  # numba's cache and the bytecode of each tree filled
-            times = interleaved(trees, pairs, command_seconds)
+                command_seconds(src, commands)  # numba's cache and the bytecode filled
+            times = interleaved(trees, pairs, lambda src: command_seconds(src, commands))
         else:
             for src in trees.values():
                 run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
             times = interleaved(trees, pairs, lambda src: run_tree(src, duration))
     print(f"after: this tree; before: {args.before}; {pairs} interleaved pairs of processes")
-    if args.commands:
+    if commands:
         print(
             f"{'command (wall s of a fresh process)':36s}  {'before':>10s}  {'after':>9s}  "
             "median after/before"
@@ -145,7 +151,7 @@ def main() -> None:
         print_medians(
             [
                 (key, [t[key] for t in times["before"]], [t[key] for t in times["after"]])
-                for key in COMMANDS
+                for key in commands
             ]
         )
         return
