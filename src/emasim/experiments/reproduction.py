@@ -94,9 +94,11 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
     return comparisons, tables
 
 
-def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> dict:
-    """Hand every figure of the report to ``drawer`` (emasim.analysis.figure_process), the
-    heaviest first; return {section: [(title, path in the report folder)]}."""
+def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tuple[dict, list]:
+    """Hand each experiment's figure (the heavy ones) to ``drawer`` (a FigureProcess, see
+    emasim.analysis.figure_process); return ({section: [(title, path in the report
+    folder)]}, [(draw, path)] of the light ones: the Pareto fronts, wear and the clearance
+    sweep, for this process to draw once it has written the rest)."""
     from ..analysis.plots import (
         plot_bench,
         plot_clearance_sweep,
@@ -105,7 +107,7 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> dict
         plot_wear,
     )
 
-    figures = {}
+    figures, later = {}, []
     for name, comparison in comparisons.items():
         plot = plot_bench if name.startswith("bench") or name == "cosim-step" else plot_comparison
         path = f"figures/{name}.png"
@@ -114,16 +116,16 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> dict
         fronts = fronts_of(comparison.scenario.get("tuning"))
         if len(fronts) > 1:
             path = f"figures/{name}-pareto.png"
-            drawer.save(partial(plot_pareto, fronts), folder / path)
+            later.append((partial(plot_pareto, fronts), folder / path))
             figures[name].append(("tracking against chattering", path))
     if "wear" in tables:
-        drawer.save(partial(plot_wear, tables["wear"]), folder / "figures/wear.png")
+        later.append((partial(plot_wear, tables["wear"]), folder / "figures/wear.png"))
         figures["wear"] = [("wear", "figures/wear.png")]
     if "clearance_sweep" in tables:
         path = "figures/clearance-sweep.png"
-        drawer.save(partial(plot_clearance_sweep, tables["clearance_sweep"]), folder / path)
+        later.append((partial(plot_clearance_sweep, tables["clearance_sweep"]), folder / path))
         figures["cosim-step"].append(("clearance sweep", path))
-    return figures
+    return figures, later
 
 
 def _counted(progress):
@@ -150,7 +152,7 @@ def reproduce(
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
     The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
     """
-    from ..analysis.figure_process import figure_writer
+    from ..analysis.figure_process import DrawHere, figure_writer
 
     if out is not None:
         check_folder(Path(out), force)
@@ -172,9 +174,10 @@ def reproduce(
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
         (folder / "runs").mkdir()
-        # the figure process draws every figure while this process writes the runs and text
+        # the figure process draws the heavy figures while this one writes the runs and the
+        # text, then draws the light ones
         with figure_writer() as drawer:
-            figures = _hand_figures(comparisons, tables, folder, drawer)
+            figures, later = _hand_figures(comparisons, tables, folder, drawer)
             for name, comparison in comparisons.items():
                 run_folder = folder / "runs" / name
                 run_folder.mkdir()
@@ -188,6 +191,9 @@ def reproduce(
                 stages=STAGES,
                 uncertainty=UNCERTAINTY,
             )
+            here = DrawHere()
+            for draw, path in later:
+                here.save(draw, path)
             drawer.wait()
 
     if out is None:
