@@ -53,7 +53,7 @@ FRESH_RUNS = (  # top-level key, what, how
     (
         "reproduce_s",
         "`emasim reproduce`: every experiment and the report",
-        "one fresh process, warm cache",
+        "median of 3 fresh processes, warm cache",
     ),
 )
 
