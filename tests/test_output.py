@@ -26,6 +26,7 @@ from emasim.output import (
     fresh_folder,
     is_emasim_folder,
     json_text,
+    new_file,
     remove_own,
     write_file,
     write_folder,
@@ -329,3 +330,31 @@ def test_a_file_put_in_while_building_is_published_as_foreign(tmp_path):
     with pytest.raises(OutputError, match="mine.txt"):
         write_folder(target, fill, force=True)
     assert (target / "mine.txt").read_text() == "keep"
+
+
+def test_a_build_killed_between_link_and_listing_is_still_cleaned(tmp_path):
+    """new_file lists its part file, writes it, links it to the final name, then lists that
+    name. Killed before the last line, the final name is unlisted but the same inode as the
+    listed part: the clean-up removes both, and a foreign file still keeps the folder."""
+    build = tmp_path / f".run.tmp-{dead_pid()}-abcdef12"
+    build.mkdir()
+    write_marker(build, "run")
+    part = build / ".result.parquet.part-0123abcd"
+    (build / JOURNAL).write_text(f"{part.name}\n")
+    part.write_bytes(b"traces")
+    os.link(part, build / "result.parquet")
+    (build / "notes.txt").write_text("someone's")
+    assert foreign_files(build) == ["notes.txt"]  # the linked name is known by its inode
+    assert clean_leftovers(tmp_path) == []
+    assert sorted(p.name for p in build.iterdir()) == ["notes.txt"]
+
+
+def test_new_file_leaves_no_part_file_and_lists_what_it_wrote(tmp_path):
+    def content(tmp):
+        write_new(tmp / "a.txt", "x")
+        with new_file(tmp / "b.bin") as handle:
+            handle.write(b"y")
+
+    target = write_folder(tmp_path / "run", content)
+    assert sorted(p.name for p in target.iterdir()) == [MARKER, "a.txt", "b.bin"]
+    assert json.loads((target / MARKER).read_text())["files"] == ["a.txt", "b.bin"]

@@ -41,6 +41,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 from collections.abc import Callable
 from pathlib import Path
 
@@ -90,8 +91,8 @@ def is_emasim_folder(path: Path) -> bool:
 def foreign_files(folder: Path) -> list[str]:
     """The files in an emasim folder that emasim did not write: every file neither in the
     marker's manifest nor in the build journal. [] means emasim may delete the folder."""
-    listed = set(_listed(folder))
-    return [name for name in _files_in(folder) if name not in listed]
+    owned = {target.relative_to(folder).as_posix() for target in _owned(folder)}
+    return [name for name in _files_in(folder) if name not in owned]
 
 
 def _files_in(folder: Path) -> list[str]:
@@ -119,23 +120,44 @@ def _build_root(path: Path) -> Path | None:
 def new_file(path: Path, text: bool = False):
     """Open a new file for writing and yield the handle; never opens an existing name.
 
-    The file is created exclusively (``open(path, "x")``), and only then, before a byte is
-    written, its path is appended to the journal of the build folder holding it (one line,
-    one ``O_APPEND`` write: safe across threads). A kill at any moment leaves either an
-    unlisted file of emasim's, which stays, or a listed one, which the clean-up removes;
-    never a listed file emasim did not create.
+    Outside a build folder the file is simply created exclusively (``open(path, "x")``).
+    Inside one, every step is listed in its journal (one line, one ``O_APPEND`` write: safe
+    across threads and processes) so that a kill at any moment leaves nothing the clean-up
+    cannot tell is emasim's:
+
+    1. the journal lists ``.<name>.part-<token>``, a name no one else can know, and only
+       then is that file created exclusively and written;
+    2. it is hard-linked to ``path`` (which fails if the name is taken: nothing is replaced),
+       ``path`` is listed, and the part name is removed.
+
+    Killed between the link and its line, ``path`` is unlisted but is the same file (inode) as
+    the listed part, which is how :func:`remove_own` knows it. A file someone else put there
+    is never listed and never shares that inode.
     """
     path = Path(path)
-    with open(path, "x" if text else "xb") as handle:
-        root = _build_root(path)
-        if root is not None:
-            line = (path.absolute().relative_to(root).as_posix() + "\n").encode()
-            fd = os.open(root / JOURNAL, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
-            try:
-                os.write(fd, line)
-            finally:
-                os.close(fd)
+    mode = "x" if text else "xb"
+    root = _build_root(path)
+    if root is None:
+        with open(path, mode) as handle:
+            yield handle
+        return
+    part = path.with_name(f".{path.name}.part-{secrets.token_hex(4)}")
+    _journal(root, part)
+    with open(part, mode) as handle:
         yield handle
+    os.link(part, path)
+    _journal(root, path)
+    part.unlink()
+
+
+def _journal(root: Path, path: Path) -> None:
+    """Append ``path`` (relative to the build folder ``root``) to ``root``'s journal."""
+    line = (path.absolute().relative_to(root).as_posix() + "\n").encode()
+    fd = os.open(root / JOURNAL, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        os.write(fd, line)
+    finally:
+        os.close(fd)
 
 
 def write_new(path: Path, content: str | bytes) -> None:
@@ -157,18 +179,35 @@ def _listed(folder: Path) -> list[str]:
     return [str(name) for name in listed] + journal if isinstance(listed, list) else journal
 
 
-def remove_own(folder: Path) -> bool:
-    """Delete from an emasim folder only the files its manifest or build journal lists, then
-    the journal, the marker and the folders left empty; anything else stays, with the folders
-    that hold it. An entry that leaves the folder, or reaches through a link, is skipped.
-    True when the folder is gone."""
+def _owned(folder: Path) -> list[Path]:
+    """The files in ``folder`` emasim created: those its manifest or journal lists (inside
+    the folder, not through a link), and one that is the same file (inode) as a listed one:
+    new_file's final name, linked to its listed part before a kill could list it."""
     base = folder.resolve()
-    for name in _listed(folder):
+    owned = []
+    for name in dict.fromkeys(_listed(folder)):
         target = folder / name
         inside = target.parent.resolve() == base.joinpath(name).parent
         if inside and (target.is_symlink() or target.is_file()):
-            with contextlib.suppress(OSError):
-                target.unlink()  # a link itself, never what it points to
+            owned.append(target)
+    inodes = {(st.st_dev, st.st_ino) for st in map(os.lstat, owned) if not _is_link(st)}
+    for name in _files_in(folder):
+        target = folder / name
+        with contextlib.suppress(OSError):
+            st = os.lstat(target)
+            if not _is_link(st) and (st.st_dev, st.st_ino) in inodes and target not in owned:
+                owned.append(target)
+    return owned
+
+
+def remove_own(folder: Path) -> bool:
+    """Delete from an emasim folder only the files emasim created (:func:`_owned`: what its
+    manifest or build journal lists), then the journal, the marker and the folders left
+    empty; anything else stays, with the folders that hold it. An entry that leaves the
+    folder, or reaches through a link, is skipped. True when the folder is gone."""
+    for target in _owned(folder):
+        with contextlib.suppress(OSError):
+            target.unlink()  # a link itself, never what it points to
     for own in (JOURNAL, MARKER):
         with contextlib.suppress(OSError):
             (folder / own).unlink()
@@ -179,6 +218,10 @@ def remove_own(folder: Path) -> bool:
     with contextlib.suppress(OSError):
         os.rmdir(folder)
     return not os.path.lexists(folder)
+
+
+def _is_link(st: os.stat_result) -> bool:
+    return stat.S_ISLNK(st.st_mode)
 
 
 def _is_empty_folder(path: Path) -> bool:

@@ -12,19 +12,23 @@ first process whatever the drawing raised, so a failed figure fails the write as
 
 The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
 built, so the file is listed in that build's journal like every other. It ends when told
-(:meth:`close`), and on its own when the first process is gone: its jobs pipe then ends.
+(:meth:`close`), and at once when the first process ends: the kernel ends it then.
 Where ``fork`` is not available (or not safe: macOS, Windows), :func:`figure_writer` gives
 :class:`DrawHere`, which draws in the calling process; the files are the same either way.
 """
 
 import contextlib
+import ctypes
 import multiprocessing
+import os
 import pickle
 import queue
+import signal
 import sys
 import threading
 from pathlib import Path
 
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 CLOSE_S = 5.0  # how long close() lets the figure process finish before ending it
 
 
@@ -62,7 +66,9 @@ class FigureProcess:
         jobs_in, self._jobs = context.Pipe(duplex=False)
         self._answers, answers_out = context.Pipe(duplex=False)
         self._process = context.Process(
-            target=_serve, args=(jobs_in, self._jobs, answers_out, self._answers), daemon=True
+            target=_serve,
+            args=(jobs_in, self._jobs, answers_out, self._answers, os.getpid()),
+            daemon=True,
         )
         self._process.start()
         jobs_in.close()
@@ -106,9 +112,13 @@ class FigureProcess:
 
     def close(self) -> None:
         """End the figure process: close the jobs pipe (its end-of-file tells it to stop) and
-        wait for it, ending it if it does not stop within a few seconds."""
+        wait for it. If it is still drawing after CLOSE_S (the writer failed or was
+        interrupted with figures pending), end it: its death also ends a send under way."""
         self._outbox.put(None)
-        self._sender.join()
+        self._sender.join(timeout=CLOSE_S)
+        if self._sender.is_alive():
+            self._process.terminate()
+            self._sender.join()
         self._jobs.close()
         self._process.join(timeout=CLOSE_S)
         if self._process.is_alive():
@@ -117,11 +127,22 @@ class FigureProcess:
         self._answers.close()
 
 
-def _serve(jobs, jobs_writer, answers, answers_reader) -> None:
-    """The figure process: close the parent's ends, import the plotting module, then draw
-    each job until the jobs pipe ends (the parent closed it, or is gone)."""
+def _die_with(parent: int) -> None:
+    """Have the kernel end this process the moment ``parent`` ends (Linux's
+    ``prctl(PR_SET_PDEATHSIG, SIGKILL)``), so that no figure is written into the build
+    folder of a process that is gone, after the next write has cleaned that folder up."""
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:  # it ended before the call
+        os._exit(0)
+
+
+def _serve(jobs, jobs_writer, answers, answers_reader, parent: int) -> None:
+    """The figure process: end with ``parent``, close its ends of the pipes, import the
+    plotting module, then draw each job until the jobs pipe ends (the parent closed it)."""
+    _die_with(parent)
     jobs_writer.close()
     answers_reader.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C is the first process's to handle
     from .plots import save_figure
 
     while True:
