@@ -46,10 +46,6 @@ def scaling_spec(runs: int, duration_s: float) -> StudySpec:
     )
 
 
-def _timed_study(spec: StudySpec, folder: Path, **where) -> float:
-    return _timed_phases(spec, folder, **where)[1]
-
-
 def _timed_phases(spec: StudySpec, folder: Path, **where) -> tuple[float, float]:
     """(seconds to the last run's end, seconds to run_study's return) of one study."""
     runs_done = [float("nan")]
@@ -77,7 +73,7 @@ def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
             warm = StudySpec(
                 SCENARIO, vary=("seed=1,2",), labels=spec.labels, settings=spec.settings
             )
-            _timed_study(warm, Path(tmp) / f"warm-{workers}", client=client)
+            _timed_phases(warm, Path(tmp) / f"warm-{workers}", client=client)
         for k in range(repeats):
             for workers, client in clients.items():
                 folder = Path(tmp) / f"run-{workers}-{k}"
@@ -108,7 +104,7 @@ def monte_carlo_seconds(runs: int) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         for label in LABELS:
             spec = StudySpec(SCENARIO, vary=UNCERTAINTY, runs=runs, labels=(label,))
-            out[f"{label}_s"] = _timed_study(spec, Path(tmp) / label, workers=2)
+            out[f"{label}_s"] = _timed_phases(spec, Path(tmp) / label, workers=2)[1]
     return out
 
 

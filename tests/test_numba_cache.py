@@ -68,6 +68,7 @@ def test_after_a_run_the_cache_this_process_uses_is_warm():
 
     simulate(load_scenario("speed-step", controllers=["speed=pi"]).setup().with_(duration_s=1e-3))
     assert not is_cold(NUMBA_CACHE_DIR)
+    assert not is_cold()  # the default: the folder emasim configured, the same one
 
 
 def test_the_command_line_says_when_it_compiles(tmp_path, monkeypatch):
@@ -76,7 +77,7 @@ def test_the_command_line_says_when_it_compiles(tmp_path, monkeypatch):
     from emasim import numba_cache
     from emasim.cli import app
 
-    monkeypatch.setattr(numba_cache, "is_cold", lambda folder: True)
+    monkeypatch.setattr(numba_cache, "is_cold", lambda folder=None: True)
     command = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.01", "--no-plot"]
     result = CliRunner().invoke(app, [*command, "--out", str(tmp_path / "r")])
     assert result.exit_code == 0

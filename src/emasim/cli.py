@@ -149,9 +149,9 @@ def _loud() -> bool:
 
 def _notice_compile() -> None:
     """One line before the one-off compile of the simulation core (numba's cache is cold)."""
-    from . import NUMBA_CACHE_DIR, numba_cache
+    from . import numba_cache
 
-    if numba_cache.is_cold(NUMBA_CACHE_DIR):
+    if numba_cache.is_cold():
         log.info("compiling the simulation core: first run only")
 
 

@@ -43,11 +43,15 @@ def keyed_folder(base: Path, digest: str) -> Path:
     return base if base.name == name else base / name
 
 
+_configured: list[Path] = []  # the folder configure() chose, once it has run
+
+
 def configure() -> Path:
     """Point numba's cache at the keyed folder (environment, and numba's live config if numba
     is imported already); return the folder."""
     given = os.environ.get("NUMBA_CACHE_DIR")
     folder = keyed_folder(Path(given) if given else default_base(), source_hash())
+    _configured[:] = [folder]
     os.environ["NUMBA_CACHE_DIR"] = str(folder)
     if "numba" in sys.modules:
         from numba.core import config
@@ -64,7 +68,9 @@ def engine_subfolder(folder: Path) -> Path:
     return folder / f"sim_{hashlib.sha1(source.encode()).hexdigest()}"
 
 
-def is_cold(folder: Path) -> bool:
-    """True when ``folder`` (a keyed cache) holds no compiled engine loop of this installation
-    yet: the next run compiles the simulation core, once."""
+def is_cold(folder: Path | None = None) -> bool:
+    """True when ``folder`` (a keyed cache; default the one :func:`configure` set when emasim
+    was imported) holds no compiled engine loop of this installation yet: the next run
+    compiles the simulation core, once."""
+    folder = folder if folder is not None else _configured[0]
     return not any(engine_subfolder(folder).glob("engine.run_ticks-*.nbi"))

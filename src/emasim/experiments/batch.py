@@ -194,18 +194,17 @@ def run_comparison(
         client=client,
         progress=progress,
     )
-    return comparison_of(scenario, runs, time.perf_counter() - start)
-
-
-def comparison_of(scenario: "Scenario", runs: list[Result], wall_s: float) -> Comparison:
-    """The Comparison of ``runs``, the Results of ``scenario.variants()`` in their order.
-    ``wall_s`` is the wall time the runs took side by side (the meta's ``simulation_wall_s``:
-    not the sum of their times, which is ``runs_wall_sum_s``)."""
-    variants = scenario.variants()
     results = dict(zip((label for label, _ in variants), runs, strict=True))
+    return comparison_of(scenario, results, time.perf_counter() - start)
+
+
+def comparison_of(scenario: "Scenario", results: dict[str, Result], wall_s: float) -> Comparison:
+    """The Comparison of ``results``, label -> Result of each of ``scenario.variants()`` in
+    their order. ``wall_s`` is the wall time the runs took side by side (the meta's
+    ``simulation_wall_s``: not the sum of their times, which is ``runs_wall_sum_s``)."""
     meta = meta_of(scenario, wall_s)
     meta["runs_wall_sum_s"] = sum(r.meta["simulation_wall_s"] for r in results.values())
-    meta["real_time_factor"] = wall_s / (scenario.duration_s * len(variants))
+    meta["real_time_factor"] = wall_s / (scenario.duration_s * len(results))
     return Comparison(
         results, scenario=scenario.model_dump(mode="json", exclude_none=True), meta=meta
     )

@@ -80,9 +80,9 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
     )
     wall_s = time.perf_counter() - start
     done = {key: [next(results) for _ in group] for key, group in groups.items()}
-    by_name = {name: [] for name in chosen}
-    for (name, *_), result in zip(groups["comparisons"], done["comparisons"], strict=True):
-        by_name[name].append(result)
+    by_name = {name: {} for name in chosen}
+    for (name, label, _), result in zip(groups["comparisons"], done["comparisons"], strict=True):
+        by_name[name][label] = result
     comparisons = {name: comparison_of(chosen[name], by_name[name], wall_s) for name in chosen}
     tables = build_tables({name: c.metrics for name, c in comparisons.items()})
     if groups["sweep"]:

@@ -313,7 +313,7 @@ def run_study(
     ``scheduler``, else to a LocalCluster of ``workers`` processes (default one per core).
     ``progress(done, total)`` is called as runs finish.
     """
-    from .. import NUMBA_CACHE_DIR, numba_cache
+    from .. import numba_cache
     from .batch import dask_client, map_runs
 
     plan = plan_study(spec)
@@ -350,7 +350,7 @@ def run_study(
                 else dask_client(scheduler, workers) as used
             ):
                 try:  # one run first only to compile: with a warm cache, all at once
-                    cold = numba_cache.is_cold(NUMBA_CACHE_DIR)
+                    cold = numba_cache.is_cold()
                     map_runs(run_and_write, jobs, used, on_done, first_alone=cold)
                 finally:
                     write_table(folder, rows, plan)  # every run that finished
