@@ -332,6 +332,22 @@ def test_rigid_pose_rejects_an_extension_that_cannot_close():
         L.rigid_pose(0.6, packed())
 
 
+def test_rigid_poses_mark_only_the_extensions_that_cannot_close():
+    """Each row is its own point: the one that cannot close is NaN, the others as alone."""
+    q = packed()
+    poses = L.rigid_poses(np.array([-0.05, 0.6, 0.1]), q)
+    assert np.isnan(poses[1]).all()
+    assert np.array_equal(poses[[0, 2]], [L.rigid_pose(-0.05, q), L.rigid_pose(0.1, q)])
+
+
+def test_a_stroke_the_linkage_cannot_follow_is_named_at_its_first_open_extension():
+    """The check of a plant names the first of its 101 rod extensions that cannot close."""
+    from emasim.plant.parameters import check_linkage_closes
+
+    with pytest.raises(ValueError, match=r"cannot close at rod extension -600 mm of the \+-600"):
+        check_linkage_closes(reference_linkage(), 1200.0)
+
+
 # --- 2. clearance -> 0 reproduces the rigid kinematics -----------------------------------------
 
 # Hinge loads of the slow rigid motion: the inertial loads of its accelerations at 20 mm/s

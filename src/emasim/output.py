@@ -389,8 +389,9 @@ def write_folder(
         write(tmp)
         write_marker(tmp, kind, files=sorted(set(_listed(tmp)) & set(_files_in(tmp))))
         (tmp / JOURNAL).unlink(missing_ok=True)
-        candidates = [path] + [path.with_name(f"{path.name}-{n}") for n in range(2, _MAX_SUFFIX)]
-        for candidate in candidates if unique else candidates[:1]:
+        suffixes = range(2, _MAX_SUFFIX) if unique else ()
+        candidates = [path, *(path.with_name(f"{path.name}-{n}") for n in suffixes)]
+        for candidate in candidates:
             if _move_into_place(tmp, candidate, force, what, refuse=not unique):
                 return candidate
         raise OutputError(f"{what} {path}: no free folder name")

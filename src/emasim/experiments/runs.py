@@ -33,14 +33,23 @@ def meta_of(scenario, wall_s: float) -> dict:
         "seed": scenario.seed,
         "scenario": scenario.name,
         "created_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        **_platform(),
+        "command_line": shlex.join(sys.argv),
+        "simulation_wall_s": wall_s,
+        "real_time_factor": wall_s / scenario.duration_s,
+    }
+
+
+@functools.cache
+def _platform() -> dict:
+    """The versions of Python, numpy, scipy and numba, and the platform (they do not change
+    while this process runs)."""
+    return {
         "python": platform.python_version(),
         "numpy": version("numpy"),
         "scipy": version("scipy"),
         "numba": version("numba"),
         "platform": platform.platform(),
-        "command_line": shlex.join(sys.argv),
-        "simulation_wall_s": wall_s,
-        "real_time_factor": wall_s / scenario.duration_s,
     }
 
 
@@ -88,13 +97,14 @@ def run_scenario(
     scenario.toml cannot hold.
     """
     check_fmu_trust(scenario, trust_fmu)
-    if scenario.solver.communication_step_s is not None and setup is None:
+    given = setup is not None
+    if scenario.solver.communication_step_s is not None and not given:
         result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
     else:
-        setup = setup if setup is not None else scenario.setup()
-        if setup.record_signals is not None:  # and what the metrics and plots read
-            setup = setup.with_(record_signals=(*setup.record_signals, *ANALYSIS_COLUMNS))
-        result = simulate(setup, progress=progress)
+        run = setup if given else scenario.setup()
+        if run.record_signals is not None:  # and what the metrics and plots read
+            run = run.with_(record_signals=(*run.record_signals, *ANALYSIS_COLUMNS))
+        result = simulate(run, progress=progress)
     # the run that was made: a comparison's other sets are not part of it
     result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
@@ -110,7 +120,7 @@ def run_scenario(
         "current": "pi",  # CurrentPI, the library's current law
     }
     laws = result.description.loops
-    own = scenario.setup().loop_laws() if setup is not None else laws
+    own = scenario.setup().loop_laws() if given else laws
     custom = {slot: law for slot, law in laws.items() if own.get(slot) != law}
     if custom:
         result.meta["custom_laws"] = custom

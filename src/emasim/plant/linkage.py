@@ -330,43 +330,89 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
     return axial
 
 
-def _circle_intersection(c1, r1, c2, r2, near):
-    """The intersection point of two circles closest to ``near``."""
-    c1, c2 = np.asarray(c1, float), np.asarray(c2, float)
-    d = np.linalg.norm(c2 - c1)
-    if d > r1 + r2 or d < abs(r1 - r2):
-        raise ValueError("linkage geometry cannot close at this rod extension")
-    a = (r1**2 - r2**2 + d**2) / (2 * d)
-    h = math.sqrt(max(r1**2 - a**2, 0.0))
-    mid = c1 + a * (c2 - c1) / d
-    perp = np.array([-(c2 - c1)[1], (c2 - c1)[0]]) / d
-    candidates = (mid + h * perp, mid - h * perp)
-    return min(candidates, key=lambda p: np.linalg.norm(p - near))
+def _circle_intersections(c1, r1, c2, r2, near) -> np.ndarray:
+    """For each row: the intersection point of the circle of radius r1 about c1 with the one
+    of radius r2 about c2 that lies closest to ``near``; NaN where the circles do not meet.
+    Points are (n, 2) arrays or one (2,) point for all rows; radii (n,) arrays or numbers.
+
+    With d = |c2 - c1|, the chord's foot lies a = (r1^2 - r2^2 + d^2) / (2 d) from c1 along
+    c2 - c1, and the two points h = sqrt(r1^2 - a^2) to either side of it.
+    """
+    c1, c2, near = (np.asarray(p, dtype=float) for p in (c1, c2, near))
+    along = c2 - c1
+    d = _lengths(along)
+    meet = (d > 0) & (d <= r1 + r2) & (d >= np.abs(r1 - r2))
+    with np.errstate(divide="ignore", invalid="ignore"):  # rows that do not meet
+        a = (_square(r1) - _square(r2) + _square(d)) / (2 * d)
+        h = np.sqrt(np.maximum(_square(r1) - _square(a), 0.0))
+        mid = c1 + a[..., None] * along / d[..., None]
+        perp = np.stack([-along[..., 1], along[..., 0]], axis=-1) / d[..., None]
+    plus, minus = mid + h[..., None] * perp, mid - h[..., None] * perp
+    nearer = _lengths(plus - near) <= _lengths(minus - near)
+    points = np.where(nearer[..., None], plus, minus)
+    return np.where(meet[..., None], points, np.nan)
 
 
-def rigid_pose(s: float, q: np.ndarray) -> np.ndarray:
-    """The 16 linkage states with every clearance closed, at rod extension s, at rest.
+# Rounded as the kinematics were when they took one point at a time, so that the rudder
+# tables, and the runs that follow them, keep their last bits: a length as np.linalg.norm of
+# one point (a dot product), a square as a scalar's ** 2 (libm's pow, which differs from x * x
+# in the last bit for about 0.1 % of numbers), the angles and their sines by libm (numpy's own
+# arctan2 differs from it in the last bit for about 2 % of these points).
+
+
+def _lengths(v: np.ndarray) -> np.ndarray:
+    """|v| of each row of an (n, 2) array."""
+    return np.sqrt((v[..., None, :] @ v[..., :, None])[..., 0, 0])
+
+
+def _square(x):
+    return np.float_power(x, 2)
+
+
+_atan2 = np.vectorize(math.atan2, otypes=[float])
+_cos = np.vectorize(math.cos, otypes=[float])
+_sin = np.vectorize(math.sin, otypes=[float])
+
+
+def rigid_poses(s: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(n, 16): the linkage states with every clearance closed, at rest, at each rod
+    extension of s (m); a row of NaN where the geometry cannot close.
 
     Rigid kinematics: the rod end is at L0 + s from A0 and r1 from B's pivot H3; B's hinge-2
     pin is then fixed, and the link's other end is Lc from it and r4 from O.
     """
+    s = np.atleast_1d(np.asarray(s, dtype=float))
     a0, h3, o = q[[A0X, A0Y]], q[[H3X, H3Y]], q[[OX, OY]]
-    p1 = _circle_intersection(a0, q[L0] + s, h3, q[R1], near=h3 + [0.0, -q[R1]])
-    theta_b = math.atan2(p1[0] - h3[0], -(p1[1] - h3[1]))  # hole at (0, -r1) turned by thB
-    p2 = h3 + q[R2] * np.array([math.cos(theta_b), math.sin(theta_b)])
-    p4 = _circle_intersection(p2, q[LC], o, q[R4], near=o + [q[R4], 0.0])
-    y = np.zeros(N_LINK)
-    y[PHI] = math.atan2(p1[1] - a0[1], p1[0] - a0[0])
-    y[XB], y[YB], y[TB] = h3[0], h3[1], theta_b
-    y[XC], y[YC] = 0.5 * (p2 + p4)
-    y[TC] = math.atan2(p4[1] - p2[1], p4[0] - p2[0]) - 0.5 * math.pi
-    y[TD] = math.atan2(p4[1] - o[1], p4[0] - o[0])
+    p1 = _circle_intersections(a0, q[L0] + s, h3, q[R1], near=h3 + [0.0, -q[R1]])
+    theta_b = _atan2(p1[:, 0] - h3[0], -(p1[:, 1] - h3[1]))  # hole at (0, -r1) turned
+    p2 = h3 + q[R2] * np.stack([_cos(theta_b), _sin(theta_b)], axis=-1)
+    p4 = _circle_intersections(p2, q[LC], o, q[R4], near=o + [q[R4], 0.0])
+    y = np.zeros((s.size, N_LINK))
+    y[:, PHI] = _atan2(p1[:, 1] - a0[1], p1[:, 0] - a0[0])
+    y[:, XB], y[:, YB], y[:, TB] = h3[0], h3[1], theta_b
+    y[:, XC], y[:, YC] = (0.5 * (p2 + p4)).T
+    y[:, TC] = _atan2(p4[:, 1] - p2[:, 1], p4[:, 0] - p2[:, 0]) - 0.5 * math.pi
+    y[:, TD] = _atan2(p4[:, 1] - o[1], p4[:, 0] - o[0])
+    y[np.isnan(p1[:, 0]) | np.isnan(p4[:, 0])] = np.nan
     return y
 
 
+def rigid_pose(s: float, q: np.ndarray) -> np.ndarray:
+    """The 16 linkage states with every clearance closed, at rod extension s (m), at rest
+    (:func:`rigid_poses`); ValueError where the geometry cannot close."""
+    return _closed(rigid_poses(s, q))[0]
+
+
 def rudder_angle_of_extension(s: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Rigid-kinematics rudder angle (rad) for rod extensions s (m)."""
-    return np.array([rigid_pose(float(x), q)[TD] for x in np.atleast_1d(s)])
+    """Rigid-kinematics rudder angle (rad) for rod extensions s (m); ValueError where the
+    geometry cannot close."""
+    return _closed(rigid_poses(s, q))[:, TD]
+
+
+def _closed(poses: np.ndarray) -> np.ndarray:
+    if np.isnan(poses).any():
+        raise ValueError("linkage geometry cannot close at this rod extension")
+    return poses
 
 
 Point_mm = numbers(2, ge=-1e4, le=1e4)  # (x, y) in mm, within 10 m of the origin

@@ -196,20 +196,16 @@ LINKAGE_CHECK_POINTS = 101  # rod extensions at which the linkage must close
 def check_linkage_closes(linkage: LinkageParams, stroke_mm: float) -> None:
     """Raise ValueError unless the rigid linkage closes at every rod extension of the stroke
     and its rudder angle rises or falls strictly along it."""
-    q = linkage.pack()
     half = 0.5 * stroke_mm * MM
-    angles = []
-    for s in np.linspace(-half, half, LINKAGE_CHECK_POINTS):
-        try:
-            pose = L.rigid_pose(float(s), q)
-        except (ValueError, ArithmeticError):
-            pose = np.full(L.N_LINK, np.nan)
-        if not np.all(np.isfinite(pose)):
-            raise ValueError(
-                f"linkage: the geometry cannot close at rod extension {s / MM:+.4g} mm of the "
-                f"+-{half / MM:g} mm stroke (check the pivots, arms and lengths)"
-            )
-        angles.append(pose[L.TD])
+    extensions = np.linspace(-half, half, LINKAGE_CHECK_POINTS)
+    poses = L.rigid_poses(extensions, linkage.pack())
+    open_at = extensions[~np.isfinite(poses).all(axis=1)]
+    if open_at.size:
+        raise ValueError(
+            f"linkage: the geometry cannot close at rod extension {open_at[0] / MM:+.4g} mm of "
+            f"the +-{half / MM:g} mm stroke (check the pivots, arms and lengths)"
+        )
+    angles = poses[:, L.TD]
     steps = np.diff(np.unwrap(angles))
     if not (np.all(steps > 0) or np.all(steps < 0)):
         raise ValueError(
