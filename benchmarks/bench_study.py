@@ -4,8 +4,9 @@
 
 Throughput: SCALING_RUNS Monte Carlo runs of bench-step (PID; the seed and the backlash drawn
 per run), SCALING_S simulated each, through ``run_study`` on a LocalCluster of one worker
-process and on one of two, both started (and their compiled code loaded) before timing;
-repeated REPEATS times, interleaved, each into a fresh folder; the median wall time of each.
+process and on one of two, each started (and its compiled code loaded) before timing and
+closed after, so that only one cluster is alive at a time; repeated REPEATS times,
+interleaved, each into a fresh folder; the median wall time of each.
 Throughput = simulated seconds of all runs / wall seconds; speed-up = 2 workers / 1 worker.
 Each study is timed twice: to its last run's end (``progress`` told every run is done: the
 runs, which the workers share) and to its return (with the summary's table and figure, which
@@ -60,24 +61,18 @@ def _timed_phases(spec: StudySpec, folder: Path, **where) -> tuple[float, float]
 
 
 def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
-    """Median wall time of the same study on 1 and on 2 worker processes (module docstring)."""
+    """Median wall time of the same study on 1 and on 2 worker processes (module docstring).
+    One cluster is alive at a time: an idle one's heartbeats would take CPU from the other."""
     spec = scaling_spec(runs, duration_s)
+    warm = StudySpec(SCENARIO, vary=("seed=1,2",), labels=spec.labels, settings=spec.settings)
     times, runs_times = {1: [], 2: []}, {1: [], 2: []}
-    with (
-        tempfile.TemporaryDirectory() as tmp,
-        dask_client(workers=1) as one,
-        dask_client(workers=2) as two,
-    ):
-        clients = {1: one, 2: two}
-        for workers, client in clients.items():  # load the compiled code in every worker
-            warm = StudySpec(
-                SCENARIO, vary=("seed=1,2",), labels=spec.labels, settings=spec.settings
-            )
-            _timed_phases(warm, Path(tmp) / f"warm-{workers}", client=client)
+    with tempfile.TemporaryDirectory() as tmp:
         for k in range(repeats):
-            for workers, client in clients.items():
-                folder = Path(tmp) / f"run-{workers}-{k}"
-                runs_s, study_s = _timed_phases(spec, folder, client=client)
+            for workers in (1, 2):
+                with dask_client(workers=workers) as client:
+                    _timed_phases(warm, Path(tmp) / f"warm-{workers}-{k}", client=client)
+                    folder = Path(tmp) / f"run-{workers}-{k}"
+                    runs_s, study_s = _timed_phases(spec, folder, client=client)
                 runs_times[workers].append(runs_s)
                 times[workers].append(study_s)
     one_s, two_s = statistics.median(times[1]), statistics.median(times[2])

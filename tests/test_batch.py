@@ -5,7 +5,14 @@ import warnings
 import numpy as np
 import pytest
 
-from emasim.experiments.batch import dask_client, run_all
+from emasim.experiments.batch import (
+    GROUP_MAX,
+    TASKS_PER_SLOT,
+    dask_client,
+    map_runs,
+    run_all,
+    task_groups,
+)
 from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import load_scenario
 
@@ -25,14 +32,17 @@ def test_parallel_runs_match_sequential_runs_with_noise():
 
 
 class RecordingClient:
-    """A Dask client that notes the simulated time of each run in the order it is sent."""
+    """A Dask client that notes the tasks it is sent: how many, and the jobs of each."""
 
     def __init__(self, client):
         self.client, self.sent = client, []
 
-    def submit(self, function, scenario, *args, **kwargs):
-        self.sent.append(scenario.duration_s)
-        return self.client.submit(function, scenario, *args, **kwargs)
+    def submit(self, run_group, function, jobs, **kwargs):
+        self.sent.append(jobs)
+        return self.client.submit(run_group, function, jobs, **kwargs)
+
+    def scheduler_info(self):
+        return self.client.scheduler_info()
 
     def cancel(self, futures):
         self.client.cancel(futures)
@@ -44,7 +54,8 @@ def test_runs_start_longest_first_and_come_back_in_the_order_given():
     with dask_client(processes=False) as client:
         recording = RecordingClient(client)
         results = run_all(scenarios, labels=[str(d) for d in durations], client=recording)
-    assert recording.sent == sorted(durations, reverse=True)
+    sent = [scenario.duration_s for task in recording.sent for scenario, *_ in task]
+    assert sent == sorted(durations, reverse=True)
     assert [r.meta["label"] for r in results] == [str(d) for d in durations]
     assert [r["t_s"][-1] for r in results] == pytest.approx([d - 1e-4 for d in durations])
 
@@ -57,3 +68,31 @@ def test_a_warning_in_a_worker_process_is_one_line(capfd):
         client.submit(warnings.warn, "eq. 37 does not hold", UserWarning, pure=False).result()
     lines = [line for line in capfd.readouterr().err.splitlines() if "eq. 37" in line]
     assert lines == ["warning: eq. 37 does not hold"]
+
+
+@pytest.mark.parametrize("jobs", [1, 7, 64, 200, 1000])
+@pytest.mark.parametrize("slots", [1, 2, 16])
+def test_task_groups_hold_every_job_once_in_shrinking_tasks(jobs, slots):
+    """Guided self-scheduling: every job once, in order; each task ceil(left / (4 slots)) jobs,
+    at most GROUP_MAX, so one job each once no more are left than 4 per slot."""
+    groups = task_groups(range(jobs), slots)
+    assert [i for group in groups for i in group] == list(range(jobs))
+    sizes = [len(group) for group in groups]
+    left = jobs
+    for size in sizes:
+        assert size == min(-(-left // (TASKS_PER_SLOT * slots)), GROUP_MAX)
+        left -= size
+    assert sizes == sorted(sizes, reverse=True) and sizes[-1] == 1
+
+
+def test_grouped_jobs_come_back_in_order_and_each_is_told():
+    """Grouped tasks: the values of all jobs in the order given; on_done hears of each job
+    once, with its own value, and fewer tasks are sent than there are jobs."""
+    jobs = [(k, k + 1) for k in range(40)]
+    told = {}
+    with dask_client(workers=2, processes=False) as client:
+        recording = RecordingClient(client)
+        values = map_runs(pow, jobs, recording, on_done=told.__setitem__, grouped=True)
+    assert values == [pow(*job) for job in jobs]
+    assert told == dict(enumerate(values))
+    assert len(recording.sent) == len(task_groups(range(40), 2)) < 40

@@ -18,8 +18,10 @@ from emasim.experiments.study import (
     METRICS_FILE,
     RUNS_FOLDER,
     StudySpec,
+    finished_rows,
     plan_study,
     read_table,
+    run_and_write,
     run_study,
 )
 from emasim.experiments.variation import parse_variation, samples
@@ -279,6 +281,25 @@ def test_a_study_resumes_with_only_the_runs_it_lacks(tmp_path, client):
     columns = list(full.columns)
     assert resumed.table[columns].equals(full[columns])
     assert not dead.exists()
+
+
+def test_a_task_run_again_reads_the_runs_it_finished_before(tmp_path, client, monkeypatch):
+    """Dask runs a task again when its worker is lost; the runs of it that wrote their folder
+    are read from it, not simulated again (their folder cannot be written twice)."""
+    from emasim.experiments import runs
+
+    spec = StudySpec("speed-step", vary=("seed=1,2",), labels=("PI",), settings=SHORT)
+    study = run_study(spec, tmp_path / "s", client=client)
+    job = plan_study(spec).jobs[0]
+    folder = tmp_path / "s" / RUNS_FOLDER / job.run_id
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("a finished run was simulated again")
+
+    monkeypatch.setattr(runs, "run_scenario", no_run)
+    row = run_and_write(job, folder, traces=False)
+    assert row == finished_rows(tmp_path / "s")[job.run_id]
+    assert row["steady_error_rms_rpm"] == study.table.iloc[0]["steady_error_rms_rpm"]
 
 
 def test_another_study_in_the_folder_is_refused_and_left_as_it_was(tmp_path, client):

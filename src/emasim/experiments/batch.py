@@ -93,31 +93,43 @@ def _check_reachable(scheduler: str) -> None:
             ) from None
 
 
-def map_runs(function, jobs: list[tuple], client, on_done=None, first_alone: bool = False):
+def map_runs(
+    function,
+    jobs: list[tuple],
+    client,
+    on_done=None,
+    first_alone: bool = False,
+    grouped: bool = False,
+):
     """``[function(*job) for job in jobs]``, run on ``client``'s workers; ``on_done(i, value)``
     is called in this process as each job ``i`` finishes. ``first_alone``: run the first job
-    before the others, so that a cold numba cache is compiled once, not by every worker. The
-    first failure cancels the jobs still waiting and is raised here."""
+    before the others, so that a cold numba cache is compiled once, not by every worker.
+    ``grouped``: send several jobs in one task (:func:`task_groups`), for many short jobs: each
+    task costs the scheduler and the client a few milliseconds of this process's CPU, which
+    the workers lose when the cluster has no core to spare. The first failure cancels the
+    tasks still waiting and is raised here."""
     from dask.distributed import as_completed
 
     values = [None] * len(jobs)
     index = {}
 
-    def submit(i):
-        future = client.submit(function, *jobs[i], pure=False)
-        index[future.key] = i
+    def submit(group):
+        future = client.submit(_run_group, function, [jobs[i] for i in group], pure=False)
+        index[future.key] = group
         return future
 
     def collect(future):
-        i = index[future.key]
-        values[i] = future.result()
-        if on_done is not None:
-            on_done(i, values[i])
+        for i, value in zip(index[future.key], future.result(), strict=True):
+            values[i] = value
+            if on_done is not None:
+                on_done(i, value)
 
     start = 1 if first_alone and jobs else 0
     if start:
-        collect(submit(0))
-    futures = [submit(i) for i in range(start, len(jobs))]
+        collect(submit([0]))
+    rest = range(start, len(jobs))
+    groups = task_groups(rest, _slots(client)) if grouped else [[i] for i in rest]
+    futures = [submit(group) for group in groups]
     try:
         for future in as_completed(futures):
             collect(future)
@@ -125,6 +137,32 @@ def map_runs(function, jobs: list[tuple], client, on_done=None, first_alone: boo
         client.cancel(futures)
         raise
     return values
+
+
+TASKS_PER_SLOT = 4  # a grouped task is at most 1/TASKS_PER_SLOT of a slot's remaining share
+GROUP_MAX = 8  # jobs: the caller hears of a slot's progress at least every GROUP_MAX jobs
+
+
+def task_groups(indices, slots: int) -> list[list[int]]:
+    """``indices`` cut into tasks of shrinking size (guided self-scheduling): each takes
+    ceil(remaining / (TASKS_PER_SLOT * slots)) of the jobs left, at most GROUP_MAX, so the
+    first tasks are large (few tasks in all) and the last hold one job each (no slot waits
+    long for another's last task)."""
+    indices, groups = list(indices), []
+    while indices:
+        size = min(-(-len(indices) // (TASKS_PER_SLOT * max(slots, 1))), GROUP_MAX)
+        groups.append(indices[:size])
+        indices = indices[size:]
+    return groups
+
+
+def _slots(client) -> int:
+    """How many tasks ``client``'s cluster runs at once (its workers' threads)."""
+    return sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
+
+
+def _run_group(function, jobs: list[tuple]) -> list:
+    return [function(*job) for job in jobs]
 
 
 def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progress=None) -> list:

@@ -19,10 +19,11 @@ plants (paired). Its folder holds
 
 The run folders are the record: a killed client or worker loses no finished run, and the same
 command resumes, running only what has no folder yet (a killed worker's runs are re-run by
-Dask on another worker). A folder that holds another study is refused: a study is never
-replaced. One client at a time holds a study (a lock on its study.json). The workers write the run
-folders themselves: on a cluster of several machines the folder must be on a file system they
-share.
+Dask on another worker; the runs go to the workers in groups, :func:`.batch.task_groups`, and
+a group run again skips the runs it finished before). A folder that holds another study is
+refused: a study is never replaced. One client at a time holds a study (a lock on its
+study.json). The workers write the run folders themselves: on a cluster of several machines
+the folder must be on a file system they share.
 """
 
 import contextlib
@@ -228,9 +229,14 @@ def _resolved(resolved: dict, key: str):
 
 
 def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False) -> dict:
-    """A worker's task: simulate one run, write its run folder, return its metrics row."""
+    """A worker's task: simulate one run, write its run folder, return its metrics row. A run
+    whose folder is finished already (a task Dask runs again after a worker was lost) is read,
+    not run again."""
     from .runs import meta_of, run_scenario
 
+    finished = _finished_row(folder)
+    if finished is not None and finished["run_id"] == job.run_id:
+        return finished
     record = {"run_id": job.run_id, "label": job.label, "sample": job.sample}
     record["values"] = job.values
     scenario = job.scenario
@@ -264,21 +270,23 @@ def _row(record: dict, status: str, metrics: dict) -> dict:
 
 def finished_rows(folder: Path) -> dict[str, dict]:
     """run_id -> row of every finished run folder of a study (its record, not the table)."""
-    rows = {}
     runs = folder / RUNS_FOLDER
-    if not runs.is_dir():
-        return rows
-    for run in runs.iterdir():
-        if not is_emasim_folder(run):
-            continue  # a killed run's temporary, or not ours
-        try:
-            meta = json.loads((run / "meta.json").read_text())
-            metrics = json.loads((run / "metrics.json").read_text())
-            record = meta["study"]
-        except (OSError, ValueError, KeyError):
-            continue
-        rows[record["run_id"]] = _row(record, meta.get("status", OK), metrics)
-    return rows
+    found = (_finished_row(run) for run in runs.iterdir()) if runs.is_dir() else ()
+    return {row["run_id"]: row for row in found if row is not None}
+
+
+def _finished_row(run: Path) -> dict | None:
+    """The row of a finished run folder, from its record; None for anything else (no folder,
+    a killed run's temporary, or not ours)."""
+    if not is_emasim_folder(run):
+        return None
+    try:
+        meta = json.loads((run / "meta.json").read_text())
+        metrics = json.loads((run / "metrics.json").read_text())
+        record = meta["study"]
+    except (OSError, ValueError, KeyError):
+        return None
+    return _row(record, meta.get("status", OK), metrics)
 
 
 @dataclass
@@ -351,7 +359,7 @@ def run_study(
             ):
                 try:  # one run first only to compile: with a warm cache, all at once
                     cold = numba_cache.is_cold()
-                    map_runs(run_and_write, jobs, used, on_done, first_alone=cold)
+                    map_runs(run_and_write, jobs, used, on_done, first_alone=cold, grouped=True)
                 finally:
                     write_table(folder, rows, plan)  # every run that finished
         table = as_frame(rows, plan)
