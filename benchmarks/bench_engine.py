@@ -18,10 +18,11 @@ the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``r
 after each, with the bytes of the kept trace (``Result.data``) and peak / trace; 1000 s runs in
 a process of its own (MEMORY_S), once with every column and once recording only the columns
 the metrics and plots read (``solver.record_signals``). Batch: the study facility's
-throughput on one and on two worker processes (``bench_study.study_scaling``); beside it, the
-same runs' compiled loop alone (EngineRun.advance, the GIL released) on one and on two Python
-threads: the scaling this machine's two cores allow; and the same runs in one ``prange`` batch
-kernel (``batch_kernel.py``) on one and on two of numba's threads, interleaved with them.
+throughput on one and on two worker processes (``bench_study.study_scaling``); beside it,
+CEILING runs of the same Monte Carlo, cut short, their compiled loop alone (EngineRun.advance,
+the GIL released) on one and on two Python threads: the scaling this machine's two cores
+allow; and the same runs in one ``prange`` batch kernel (``batch_kernel.py``) on one and on two
+of numba's threads, interleaved with them.
 Monte Carlo: the wall time of the 200-run
 bench-step robustness study of each controller set (``bench_study.monte_carlo_seconds``).
 FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``. Acceptance: the wall time
@@ -29,7 +30,10 @@ of the whole battery on bench-step's two controller sets (``bench_acceptance.bat
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
 count and the Python, numpy and numba versions) and rewrites the README's speed table from it
-(``readme_figures.py``); ``--json FILE`` writes the same figures to FILE only.
+(``readme_figures.py``); ``--json FILE`` writes the same figures to FILE only. ``--write
+--update NAME`` re-measures one part of the stored figures (SECTIONS: reproduce_s,
+peak_memory, batch, monte_carlo), keeps the rest, and notes the part's date under
+``updated``, which the table's first line names.
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
 and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
@@ -65,6 +69,7 @@ from emasim.sim.engine import EngineRun, simulate
 from emasim.sim.reference import simulate_reference
 
 QUICK_S = 0.05
+CEILING = (16, 2.0)  # runs of the batch's Monte Carlo, simulated s each, for the loop alone
 QUICK_REFERENCE_S = 0.005
 MEMORY_S = (100.0, 1000.0)
 QUICK_MEMORY_S = 1.0
@@ -218,13 +223,12 @@ def core_seconds(setups: list, threads: int) -> float:
     return time.perf_counter() - start
 
 
-def batch_scaling(runs: int, duration_s: float, repeats: int) -> dict:
+def batch_scaling(runs: int, duration_s: float | None, repeats: int, ceiling: tuple) -> dict:
     """The study facility on 1 and 2 worker processes (bench_study.study_scaling); and the
-    same runs' compiled loop alone on 1 and 2 threads, interleaved, the machine's ceiling."""
+    ``ceiling`` (runs, duration_s) of the same Monte Carlo's compiled loop alone on 1 and 2
+    threads, interleaved: the machine's ceiling."""
     figures = bench_study.study_scaling(runs, duration_s, repeats)
-    setups = [
-        job.scenario.setup() for job in plan_study(bench_study.scaling_spec(runs, duration_s)).jobs
-    ]
+    setups = [job.scenario.setup() for job in plan_study(bench_study.scaling_spec(*ceiling)).jobs]
     core_seconds(setups[:1], 1)  # load compiled code
     warm = batch_kernel.stack(setups[:2])
     batch_kernel.run_stacked(warm, 2)  # compile the kernel
@@ -240,6 +244,7 @@ def batch_scaling(runs: int, duration_s: float, repeats: int) -> dict:
             kernel[threads].append(time.perf_counter() - start)
     core_s = {threads: statistics.median(times) for threads, times in core.items()}
     kernel_s = {threads: statistics.median(times) for threads, times in kernel.items()}
+    figures["ceiling_runs"], figures["ceiling_s"] = ceiling
     figures["core_speedup"] = core_s[1] / core_s[2]
     figures["prange_speedup"] = kernel_s[1] / kernel_s[2]
     figures["prange_vs_threads"] = core_s[2] / kernel_s[2]  # above 1: the kernel is faster
@@ -266,7 +271,8 @@ def quick_results() -> dict:
     results["reference"] = reference_speedup(QUICK_REFERENCE_S)
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
-    results["batch"] = batch_scaling(bench_study.QUICK_RUNS, bench_study.QUICK_S, 1)
+    quick = (bench_study.QUICK_RUNS, bench_study.QUICK_S)
+    results["batch"] = batch_scaling(*quick, 1, ceiling=quick)
     return results
 
 
@@ -286,14 +292,30 @@ def full_results() -> dict:
     with tempfile.TemporaryDirectory() as cold:
         results["fresh_run_cold_cache_s"] = fresh_process_seconds(cold)
     results["reference"] = reference_speedup()
-    results["reproduce_s"] = reproduce_seconds()
-    results["peak_memory"] = memory_figures(MEMORY_S)
-    results["batch"] = batch_scaling(
-        bench_study.SCALING_RUNS, bench_study.SCALING_S, bench_study.REPEATS
-    )
-    results["monte_carlo"] = bench_study.monte_carlo_seconds(bench_study.MC_RUNS)
+    for name, measure in SECTIONS.items():
+        results[name] = measure()
     results["fmu"] = bench_fmu.fmu_figures(5, 2000)
     results["acceptance"] = bench_acceptance.battery_figures()
+    return results
+
+
+SECTIONS = {  # the full run's figures that --update re-measures alone
+    "reproduce_s": reproduce_seconds,
+    "peak_memory": lambda: memory_figures(MEMORY_S),
+    "batch": lambda: batch_scaling(
+        bench_study.SCALING_RUNS, None, bench_study.REPEATS, ceiling=CEILING
+    ),
+    "monte_carlo": lambda: bench_study.monte_carlo_seconds(bench_study.MC_RUNS),
+}
+
+
+def updated_results(names: list[str]) -> dict:
+    """The stored results with the ``names`` sections re-measured (each noted in ``updated``
+    with today's date)."""
+    results = json.loads(RESULTS.read_text())
+    for name in names:
+        results[name] = SECTIONS[name]()
+        results.setdefault("updated", {})[name] = datetime.date.today().isoformat()
     return results
 
 
@@ -306,8 +328,19 @@ def main() -> None:
         help="store the figures in benchmarks/results.json and rewrite the README's speed table",
     )
     parser.add_argument("--json", help="also write the figures to this file")
+    parser.add_argument(
+        "--update",
+        action="append",
+        choices=list(SECTIONS),
+        help="re-measure only this part of the stored results (repeatable; with --write)",
+    )
     args = parser.parse_args()
-    results = quick_results() if args.quick else full_results()
+    if args.update and (args.quick or not args.write):
+        parser.error("--update re-measures stored results: give --write, not --quick")
+    if args.update:
+        results = updated_results(args.update)
+    else:
+        results = quick_results() if args.quick else full_results()
     report(results)
     text = json.dumps(results, indent=2) + "\n"
     if args.json:

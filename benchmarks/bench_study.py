@@ -2,19 +2,18 @@
 
     python benchmarks/bench_study.py [--quick]
 
-Throughput: SCALING_RUNS Monte Carlo runs of bench-step (PID; the seed and the backlash drawn
-per run), SCALING_S simulated each, through ``run_study`` on a LocalCluster of one worker
-process and on one of two, each started (and its compiled code loaded) before timing and
-closed after, so that only one cluster is alive at a time; repeated REPEATS times,
-interleaved, each into a fresh folder; the median wall time of each.
-Throughput = simulated seconds of all runs / wall seconds; speed-up = 2 workers / 1 worker.
-Each study is timed twice: to its last run's end (``progress`` told every run is done: the
-runs, which the workers share) and to its return (with the summary's table and figure, which
-the client draws alone after the runs, the same on any number of workers).
-Monte Carlo: the wall time of the robustness study of bench-step (emasim.experiments.robustness:
-MC_RUNS runs, the bench's whole plant uncertainty) for each controller set alone, on a
-LocalCluster of two workers, cluster start included: what ``emasim reproduce --robustness``
-spends on each.
+Throughput: a Monte Carlo of SCALING_RUNS runs of bench-step (PID, at the scenario's own
+duration; the bench's whole plant uncertainty drawn per run, emasim.experiments.robustness)
+through ``run_study`` on a LocalCluster of one worker process and on one of two, each started
+(and its compiled code loaded) before timing and closed after, so that only one cluster is
+alive at a time; repeated REPEATS times, interleaved, each into a fresh folder; the median wall
+time of each. Throughput = simulated seconds of all runs / wall seconds; speed-up = 2 workers /
+1 worker. Each study is timed twice: to its last run's end (``progress`` told every run is
+done: the runs, which the workers share) and to its return (with the summary's table and
+figure, which the client draws alone after the runs, the same on any number of workers).
+Monte Carlo: the wall time of the robustness study of bench-step (MC_RUNS runs) for each
+controller set alone, on a LocalCluster of two workers, cluster start included: what
+``emasim reproduce --robustness`` spends on each.
 
 ``bench_engine.py`` calls :func:`study_scaling` and :func:`monte_carlo_seconds` for its
 results (and the README's speed table); run alone, this prints them. ``--quick`` (what CI
@@ -29,22 +28,19 @@ from pathlib import Path
 
 from emasim.experiments.batch import dask_client
 from emasim.experiments.robustness import UNCERTAINTY
-from emasim.experiments.study import StudySpec, run_study
+from emasim.experiments.study import StudySpec, plan_study, run_study
 
-SCALING_RUNS, SCALING_S, REPEATS = 16, 2.0, 3
+SCALING_RUNS, REPEATS = 64, 3
 QUICK_RUNS, QUICK_S = 4, 0.1
 MC_RUNS, QUICK_MC_RUNS = 200, 2
 SCENARIO, LABELS = "bench-step", ("PID", "hybrid")
 
 
-def scaling_spec(runs: int, duration_s: float) -> StudySpec:
-    return StudySpec(
-        SCENARIO,
-        vary=("seed=integers(0, 99999)", "plant.backlash.width_mm=uniform(0.05, 0.2)"),
-        runs=runs,
-        labels=(LABELS[0],),
-        settings=(f"duration_s={duration_s}",),
-    )
+def scaling_spec(runs: int, duration_s: float | None = None) -> StudySpec:
+    """The Monte Carlo of the throughput figures: ``runs`` plants of the bench's uncertainty,
+    PID, each ``duration_s`` long (None: the scenario's own duration)."""
+    settings = (f"duration_s={duration_s}",) if duration_s is not None else ()
+    return StudySpec(SCENARIO, vary=UNCERTAINTY, runs=runs, labels=(LABELS[0],), settings=settings)
 
 
 def _timed_phases(spec: StudySpec, folder: Path, **where) -> tuple[float, float]:
@@ -60,7 +56,7 @@ def _timed_phases(spec: StudySpec, folder: Path, **where) -> tuple[float, float]
     return runs_done[0] - start, time.perf_counter() - start
 
 
-def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
+def study_scaling(runs: int, duration_s: float | None, repeats: int) -> dict:
     """Median wall time of the same study on 1 and on 2 worker processes (module docstring).
     One cluster is alive at a time: an idle one's heartbeats would take CPU from the other."""
     spec = scaling_spec(runs, duration_s)
@@ -77,11 +73,13 @@ def study_scaling(runs: int, duration_s: float, repeats: int) -> dict:
                 times[workers].append(study_s)
     one_s, two_s = statistics.median(times[1]), statistics.median(times[2])
     one_runs_s, two_runs_s = statistics.median(runs_times[1]), statistics.median(runs_times[2])
-    simulated = runs * duration_s
+    run_s = plan_study(spec).jobs[0].scenario.duration_s
+    simulated = runs * run_s
     return {
         "scenario": SCENARIO,
         "runs": runs,
-        "duration_s": duration_s,
+        "duration_s": run_s,
+        "repeats": repeats,
         "one_worker_s": one_s,
         "two_workers_s": two_s,
         "one_worker_sim_s_per_s": simulated / one_s,
@@ -110,7 +108,7 @@ def main() -> None:
     if args.quick:
         scaling, mc = study_scaling(QUICK_RUNS, QUICK_S, 1), monte_carlo_seconds(QUICK_MC_RUNS)
     else:
-        scaling, mc = study_scaling(SCALING_RUNS, SCALING_S, REPEATS), monte_carlo_seconds(MC_RUNS)
+        scaling, mc = study_scaling(SCALING_RUNS, None, REPEATS), monte_carlo_seconds(MC_RUNS)
     report(scaling, mc)
 
 

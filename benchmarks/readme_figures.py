@@ -129,10 +129,11 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
     if batch is not None:
         rows.append(
             (
-                f"{batch['runs']} Monte Carlo runs of `{batch['scenario']}` (PID; seed and "
-                f"backlash drawn, {given(batch['duration_s'])} each) through `emasim study`'s "
-                "facility, 1 worker process against 2",
-                "median of 3 each, interleaved, clusters started beforehand",
+                f"{batch['runs']} Monte Carlo runs of `{batch['scenario']}` (PID; the bench's "
+                f"plant uncertainty drawn, {given(batch['duration_s'])} each) through "
+                "`emasim study`'s facility, 1 worker process against 2",
+                f"median of {batch.get('repeats', 3)} each, interleaved, one cluster at a time, "
+                "started beforehand",
                 f"{sig(batch['one_worker_sim_s_per_s'], 3)} against "
                 f"{sig(batch['two_workers_sim_s_per_s'], 3)} simulated s per s: "
                 f"speed-up {batch['speedup']:.2f}",
@@ -151,8 +152,9 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
             )
         rows.append(
             (
-                "the same runs' compiled loop alone (no set-up, no metrics, GIL released), "
-                "1 thread against 2: the machine's ceiling",
+                f"{batch['ceiling_runs']} runs of the same Monte Carlo, "
+                f"{given(batch['ceiling_s'])} each: their compiled loop alone (no set-up, no "
+                "metrics, GIL released), 1 thread against 2: the machine's ceiling",
                 "median of 3 each, interleaved, in one process",
                 f"speed-up {batch['core_speedup']:.2f}",
             )
@@ -243,9 +245,11 @@ def render(results: dict) -> str:
             "`python benchmarks/bench_engine.py --write` measures them.**",
             "",
         ]
+    later = results.get("updated", {})
     lines += [
         f"Measured on {results['date']}: {results['platform']}, {results['cpu_count']} CPUs, "
-        f"Python {results['python']}, numpy {results['numpy']}, numba {results['numba']}.",
+        f"Python {results['python']}, numpy {results['numpy']}, numba {results['numba']}."
+        + "".join(f" `{name}` re-measured on {date}." for name, date in later.items()),
         "",
         "| what | how | measured |",
         "|---|---|---|",
