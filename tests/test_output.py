@@ -70,8 +70,7 @@ def test_a_users_folder_file_or_link_is_never_replaced(tmp_path, force):
 
 
 def test_an_emasim_result_is_replaced_only_with_force(tmp_path):
-    target = write_folder(tmp_path / "run", fill)
-    (target / "a.txt").write_text("first")
+    target = write_folder(tmp_path / "run", lambda tmp: write_new(tmp / "a.txt", "first"))
     with pytest.raises(OutputError, match="--force"):
         write_folder(target, fill)
     assert (target / "a.txt").read_text() == "first"
@@ -225,11 +224,43 @@ def test_json_is_valid_json():
 def test_force_never_deletes_a_file_a_user_put_into_an_emasim_result(tmp_path):
     target = write_folder(tmp_path / "run", fill)
     (target / "my_notes.txt").write_text("observations")
-    with pytest.raises(OutputError, match="emasim did not write .my_notes.txt"):
+    with pytest.raises(OutputError, match="emasim did not write, or changed since .my_notes.txt"):
         write_folder(target, fill, force=True)
     assert (target / "my_notes.txt").read_text() == "observations"
     (target / "my_notes.txt").unlink()
     write_folder(target, fill, force=True)  # only its own files again: replaceable
+
+
+@pytest.mark.parametrize("edit", ["in place", "saved over", "same size, later"])
+def test_force_never_deletes_a_file_a_user_changed_in_an_emasim_result(tmp_path, edit):
+    """A file emasim wrote and a user then edited is the user's work: --force refuses to
+    replace the result, and the edit stays. The manifest holds each file's size and
+    modification time as published; an editor that saves a new file over the old one, or an
+    edit of the same size, changes them too."""
+    target = write_folder(tmp_path / "run", fill)
+    mine = target / "a.txt"
+    if edit == "in place":
+        mine.write_text("my own conclusions")
+    elif edit == "saved over":
+        (target / "draft").write_text("my own conclusions")
+        os.replace(target / "draft", mine)
+    else:
+        mine.write_text("NEW")
+        os.utime(mine, ns=(mine.stat().st_atime_ns, mine.stat().st_mtime_ns + 10**9))
+    with pytest.raises(OutputError, match="changed since .a.txt"):
+        write_folder(target, fill, force=True)
+    assert foreign_files(target) == ["a.txt"]
+    assert not remove_own(target) and mine.exists()
+
+
+def test_a_result_moved_with_its_times_kept_is_still_emasims(tmp_path):
+    """A result moved or copied with its files' times kept (mv, cp -a) may still be replaced:
+    the manifest's stamps are size and modification time, not the inode."""
+    target = write_folder(tmp_path / "run", fill)
+    copy = tmp_path / "copy"
+    subprocess.run(["cp", "-a", str(target), str(copy)], check=True)
+    assert foreign_files(copy) == []
+    write_folder(copy, fill, force=True)
 
 
 def test_a_dead_runs_old_copy_holding_a_users_file_is_kept(tmp_path):

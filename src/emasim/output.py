@@ -10,7 +10,9 @@ holds the marker. The rules:
 
 * a target that does not exist, or an empty folder, is written;
 * an emasim result is replaced only with ``force=True`` (the command line's ``--force``), and
-  only while it holds nothing but its manifest's files: a file a user added keeps it;
+  only while it holds nothing but its manifest's files as emasim wrote them: a file a user
+  added, or one of emasim's that a user changed since (its size or modification time is not
+  the manifest's), keeps it;
 * anything else (a user's folder, a file, a link) is refused, with or without ``force``.
 
 Files follow the same rules, with ``is_ours`` telling whether an existing file is emasim's
@@ -89,8 +91,9 @@ def is_emasim_folder(path: Path) -> bool:
 
 
 def foreign_files(folder: Path) -> list[str]:
-    """The files in an emasim folder that emasim did not write: every file neither in the
-    marker's manifest nor in the build journal. [] means emasim may delete the folder."""
+    """The files in an emasim folder that are not emasim's as it wrote them: every file
+    neither in the marker's manifest nor in the build journal, and every manifest file changed
+    since it was published. [] means emasim may delete the folder."""
     owned = {target.relative_to(folder).as_posix() for target in _owned(folder)}
     return [name for name in _files_in(folder) if name not in owned]
 
@@ -166,30 +169,45 @@ def write_new(path: Path, content: str | bytes) -> None:
         handle.write(content)
 
 
-def _listed(folder: Path) -> list[str]:
-    """The files emasim created in ``folder``: its marker's manifest and its build journal."""
+def _listed(folder: Path) -> dict[str, list | None]:
+    """The files emasim created in ``folder``, each with the stamp it was published with
+    (:func:`_stamp`; None for a file of the build journal, or of a manifest without stamps):
+    its marker's manifest and its build journal."""
     try:
-        listed = json.loads((folder / MARKER).read_text())["files"]
-    except (OSError, ValueError, KeyError, TypeError):
-        listed = []
+        record = json.loads((folder / MARKER).read_text())
+        listed, stamps = record["files"], record.get("stamps", {})
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        listed, stamps = [], {}
     try:
         journal = (folder / JOURNAL).read_text().splitlines()
     except OSError:
         journal = []
-    return [str(name) for name in listed] + journal if isinstance(listed, list) else journal
+    if not isinstance(listed, list) or not isinstance(stamps, dict):
+        listed, stamps = [], {}
+    names = {str(name): stamps.get(str(name)) for name in listed}
+    return names | {name: None for name in journal if name not in names}
+
+
+def _stamp(st: os.stat_result) -> list[int]:
+    """What the manifest keeps of a file it lists: size (bytes) and modification time (ns).
+    Both change with any edit, or with a new file saved over it; both stay when the result
+    is moved, or copied with its times (``mv``, ``cp -a``)."""
+    return [st.st_size, st.st_mtime_ns]
 
 
 def _owned(folder: Path) -> list[Path]:
     """The files in ``folder`` emasim created: those its manifest or journal lists (inside
-    the folder, not through a link), and one that is the same file (inode) as a listed one:
-    new_file's final name, linked to its listed part before a kill could list it."""
+    the folder, not through a link; a manifest's file only while its size and modification
+    time are those it was published with), and one that is the same file (inode) as a listed
+    one: new_file's final name, linked to its listed part before a kill could list it."""
     base = folder.resolve()
     owned = []
-    for name in dict.fromkeys(_listed(folder)):
+    for name, stamp in _listed(folder).items():
         target = folder / name
         inside = target.parent.resolve() == base.joinpath(name).parent
         if inside and (target.is_symlink() or target.is_file()):
-            owned.append(target)
+            if stamp is None or target.is_symlink() or _stamp(os.lstat(target)) == stamp:
+                owned.append(target)
     inodes = {(st.st_dev, st.st_ino) for st in map(os.lstat, owned) if not _is_link(st)}
     for name in _files_in(folder):
         target = folder / name
@@ -265,7 +283,7 @@ def _refuse_foreign(path: Path, what: str) -> None:
     foreign = foreign_files(path)
     if foreign:
         raise OutputError(
-            f"{what} {path}: holds files emasim did not write ({foreign[0]}"
+            f"{what} {path}: holds files emasim did not write, or changed since ({foreign[0]}"
             + (f" and {len(foreign) - 1} more" if len(foreign) > 1 else "")
             + "); move them out first, or choose another path"
         )
@@ -403,10 +421,15 @@ def write_folder(
 def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> None:
     """The marker that makes ``folder`` an emasim result: written first, then again with the
     manifest of ``files`` emasim wrote (relative paths, from the build journal), which alone
-    it may ever delete."""
+    it may ever delete, each with its stamp (:func:`_stamp`)."""
     from . import __version__
 
-    record = {"kind": kind, "emasim_version": __version__, "files": files or []}
+    files = files or []
+    stamps = {}
+    for name in files:
+        with contextlib.suppress(OSError):  # a name that is not there has no stamp
+            stamps[name] = _stamp(os.lstat(folder / name))
+    record = {"kind": kind, "emasim_version": __version__, "files": files, "stamps": stamps}
     (folder / MARKER).write_text(json_text(record))
 
 
