@@ -253,6 +253,16 @@ def test_force_never_deletes_a_file_a_user_changed_in_an_emasim_result(tmp_path,
     assert not remove_own(target) and mine.exists()
 
 
+def test_force_never_deletes_a_hard_link_a_user_made_in_an_emasim_result(tmp_path):
+    """A hard link a user made in a published result to one of emasim's files is the user's
+    name for that data: it is foreign, --force refuses, and both names stay."""
+    target = write_folder(tmp_path / "run", fill)
+    os.link(target / "a.txt", target / "kept.txt")
+    with pytest.raises(OutputError, match="changed since .kept.txt"):
+        write_folder(target, fill, force=True)
+    assert (target / "kept.txt").read_text() == "new"
+
+
 def test_a_result_moved_with_its_times_kept_is_still_emasims(tmp_path):
     """A result moved or copied with its files' times kept (mv, cp -a) may still be replaced:
     the manifest's stamps are size and modification time, not the inode."""

@@ -178,14 +178,19 @@ def _listed(folder: Path) -> dict[str, list | None]:
         listed, stamps = record["files"], record.get("stamps", {})
     except (OSError, ValueError, KeyError, TypeError, AttributeError):
         listed, stamps = [], {}
-    try:
-        journal = (folder / JOURNAL).read_text().splitlines()
-    except OSError:
-        journal = []
+    journal = _journal_names(folder)
     if not isinstance(listed, list) or not isinstance(stamps, dict):
         listed, stamps = [], {}
     names = {str(name): stamps.get(str(name)) for name in listed}
     return names | {name: None for name in journal if name not in names}
+
+
+def _journal_names(folder: Path) -> list[str]:
+    """The names a build folder's journal lists ([] for a published folder: it has none)."""
+    try:
+        return (folder / JOURNAL).read_text().splitlines()
+    except OSError:
+        return []
 
 
 def _stamp(st: os.stat_result) -> list[int]:
@@ -198,17 +203,21 @@ def _stamp(st: os.stat_result) -> list[int]:
 def _owned(folder: Path) -> list[Path]:
     """The files in ``folder`` emasim created: those its manifest or journal lists (inside
     the folder, not through a link; a manifest's file only while its size and modification
-    time are those it was published with), and one that is the same file (inode) as a listed
-    one: new_file's final name, linked to its listed part before a kill could list it."""
+    time are those it was published with), and one that is the same file (inode) as a part
+    its build journal lists: new_file's final name, linked to its listed part before a kill
+    could list it. (A published folder has no journal: a hard link a user made there to one
+    of emasim's files is the user's name, and stays.)"""
     base = folder.resolve()
     owned = []
     for name, stamp in _listed(folder).items():
         target = folder / name
         inside = target.parent.resolve() == base.joinpath(name).parent
         if inside and (target.is_symlink() or target.is_file()):
-            if stamp is None or target.is_symlink() or _stamp(os.lstat(target)) == stamp:
+            if stamp is None or _stamp(os.lstat(target)) == stamp:
                 owned.append(target)
-    inodes = {(st.st_dev, st.st_ino) for st in map(os.lstat, owned) if not _is_link(st)}
+    parts = [folder / name for name in _journal_names(folder)]
+    listed_parts = [target for target in owned if target in parts]
+    inodes = {(st.st_dev, st.st_ino) for st in map(os.lstat, listed_parts) if not _is_link(st)}
     for name in _files_in(folder):
         target = folder / name
         with contextlib.suppress(OSError):
