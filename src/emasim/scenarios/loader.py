@@ -173,7 +173,8 @@ def load_scenario(
     of the comparison's first set that uses it, else from the library's defaults. Either
     leaves a single run (no comparison); the set whose gains it took is recorded as
     ``tuning.gains_from``, and the one ``label`` chose as ``tuning.controller_set`` (the run's
-    label)."""
+    label). ``label`` and ``controllers`` together run that set with those loops replaced,
+    labelled so: ``PI (speed=smc)``."""
     raw, source = read_scenario_file(name_or_path)
     choose_controllers(raw, list(controllers), label)
     for setting in settings:
@@ -215,6 +216,8 @@ def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> 
             break
     if origin:
         raw.setdefault("tuning", {})["gains_from"] = ", ".join(dict.fromkeys(origin))
+    if label is not None and controllers:  # that set with its loops replaced: say so
+        raw["tuning"]["controller_set"] = f"{label} ({', '.join(controllers)})"
 
 
 def validate_scenario(raw: dict, source: str = "scenario") -> Scenario:
