@@ -11,3 +11,7 @@ class InputError(EmasimError):
 
 class SimulationDiverged(EmasimError):
     """The simulation produced NaN/inf or a state beyond its physical bound."""
+
+
+class LawFailed(SimulationDiverged):
+    """A controller law raised or returned a non-finite command; the run stopped there."""

@@ -136,7 +136,8 @@ D_UQ = 2
 D_CURRENT_LIMIT = 3  # the current limit in force at the last tick (A)
 D_FLAGS = 4  # the limits that acted at the last tick (emasim.interface.LIMIT_* bits)
 D_FOLDED = 5  # 1 while the I^2 t protection holds the current at its continuous rating
-N_DRIVE = 6
+D_LAW = 6  # 1 + the slot whose law gave a non-finite output this tick (0: none; engine)
+N_DRIVE = 7
 
 
 class Workspace(NamedTuple):

@@ -54,6 +54,7 @@ from .core import (
     D_FLAGS,
     D_FOLDED,
     D_HEAT,
+    D_LAW,
     D_UD,
     D_UQ,
     F8A,
@@ -74,6 +75,7 @@ from .core import (
     Workspace,
 )
 from .diagnosis import likely_cause
+from .lawguard import law_failure, watching
 from .result import Result, RunDescription
 
 if TYPE_CHECKING:
@@ -112,6 +114,7 @@ PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one wit
 OK = 0
 NOT_FINITE = 1
 OUT_OF_BOUNDS = 2
+LAW_FAILED = 3  # a law's output was not finite (or it raised: emasim.sim.lawguard); index: slot
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -128,6 +131,13 @@ def current_bounds(p, drive, speed):
     return -i_lim * down, i_lim * up, i_lim
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _law_failed(drive, slot):
+    """Mark law ``slot`` as failed (D_LAW) and end the tick: no command is applied."""
+    drive[D_LAW] = slot + 1.0
+    return np.nan, np.nan, np.nan, np.nan, np.nan
+
+
 @njit(cache=True, error_model="numpy")
 def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing, scratch):
     """One control sample: read the sensors, run the slots that close (position, speed, then
@@ -139,7 +149,8 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
     limits the commands sat at (cut by the drive, or already at the limit: the library's laws
     limit their own outputs), and its I^2 t heat advances on the measured current. ``laws`` are the
     slots' compiled functions, ``slots`` their (params, state); ``scratch`` is (meas, ref,
-    out), reused from tick to tick.
+    out), reused from tick to tick. A law whose output the loop uses is not finite ends the
+    tick at once with drive[D_LAW] = 1 + its slot (``out`` keeps what it wrote).
     """
     meas, ref, out = scratch
     p = plant.params
@@ -158,6 +169,8 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
         params, state = slots[POSITION_SLOT]
         laws[POSITION_SLOT](state, params, meas, ref, ts, out)
         r, dr = out[O_VALUE], out[O_RATE]
+        if not (np.isfinite(r) and np.isfinite(dr)):
+            return _law_failed(drive, POSITION_SLOT)
     i_low, i_high, i_lim = current_bounds(p, drive, meas[M_SPEED])
     if timing.loop == LOOP_POSITION_CURRENT:
         command = r
@@ -171,12 +184,16 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
         params, state = slots[SPEED_SLOT]
         laws[SPEED_SLOT](state, params, meas, ref, ts, out)
         command = out[O_VALUE]
+        if not np.isfinite(command):
+            return _law_failed(drive, SPEED_SLOT)
     iq_ref = clamp(command, i_low, i_high)
     if iq_ref >= i_high or iq_ref <= i_low:  # at a bound: the current's, or the fold-back's
         flags |= LIMIT_CURRENT if abs(iq_ref) >= i_lim else LIMIT_SPEED
     ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = iq_ref, 0.0, 0.0
     params, state = slots[CURRENT_SLOT]
     laws[CURRENT_SLOT](state, params, meas, ref, ts, out)
+    if not (np.isfinite(out[O_UD]) and np.isfinite(out[O_UQ])):
+        return _law_failed(drive, CURRENT_SLOT)
     u_d, u_q = limit_voltage(out[O_UD], out[O_UQ], p[A.P_UDC])
     if math.hypot(u_d, u_q) >= (1.0 - VOLTAGE_ROUND_OFF) * p[A.P_UDC] / math.sqrt(3.0):
         flags |= LIMIT_VOLTAGE
@@ -354,7 +371,8 @@ def run_ticks(
 
     Row k // record_every of ``trace`` is recorded at every ``record_every``-th tick.
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
-    plant's limits the run stops and ``status`` holds (code, tick, state index).
+    plant's limits the run stops and ``status`` holds (code, tick, state index); on a law's
+    non-finite output, (LAW_FAILED, tick, slot).
     """
     if k0 == 0:
         seed_noise(timing.seed)
@@ -373,6 +391,9 @@ def run_ticks(
         u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
             t, k, x, plant, signals, sensors, drive, laws, slots, timing, scratch
         )
+        if drive[D_LAW] != 0.0:
+            status[0], status[1], status[2] = LAW_FAILED, k, int(drive[D_LAW]) - 1
+            return
         if k % timing.record_every == 0:
             r = k // timing.record_every
             record(
@@ -433,9 +454,14 @@ class EngineRun:
 
     def advance(self, k_end: int) -> None:
         run = self.run
+        out = run.core.workspace.out
         start = time.perf_counter()
-        run_ticks(self.tick, k_end, run.x, *run.core, run.trace, self.status)
+        with watching(out) as raised:
+            run_ticks(self.tick, k_end, run.x, *run.core, run.trace, self.status)
         self.wall_s += time.perf_counter() - start
+        if self.status[0] == LAW_FAILED:
+            t = int(self.status[1]) * self.setup.sample_period_s
+            raise law_failure(self.setup, int(self.status[2]), t, out, raised)
         if self.status[0] != OK:
             raise SimulationDiverged(_divergence_message(self.setup, self.status))
         self.tick = k_end
