@@ -106,14 +106,32 @@ def open_storage(url: str):
     from .output import check_parents
 
     path = _sqlite_path(url)
-    if path is not None:
+    if path is None:
+        return _rdb_storage(url)
+    check_parents(path, "--storage")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with _creating(path):
         if path.exists() and not (path.is_file() and _is_optuna_database(path)):
             raise InputError(
                 f"--storage {url}: {path} exists and is not an Optuna study database; "
                 "emasim never writes into it (choose another path)"
             )
-        check_parents(path, "--storage")
-        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.exists():
+            return _rdb_storage(url)  # its tables made under the lock
+    return _rdb_storage(url)
+
+
+def _creating(path: Path):
+    """Hold the lock on ``path``'s folder while the SQLite database there is checked and its
+    tables made: two tunings that first use a new storage at once would both create them
+    ("table ... already exists"); the second waits, then finds them."""
+    from .output import _locked
+
+    return _locked(path.parent)
+
+
+def _rdb_storage(url: str):
+    """Optuna's RDBStorage at ``url`` (open_storage), or InputError with its first line."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
