@@ -674,8 +674,9 @@ def acceptance(
 
     try:
         sc = load_scenario(scenario, settings=setting or [])
-        from .experiments.acceptance import run_acceptance
+        from .experiments.acceptance import check_acceptance, run_acceptance
 
+        check_acceptance(sc, label)  # every rule, before anything is compiled or written
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time
         _notice_compile()

@@ -483,6 +483,41 @@ def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, tuple
     return jobs
 
 
+def check_acceptance(scenario: Scenario, labels: list[str] | None = None) -> None:
+    """Every rule of the battery on ``scenario``, checked before anything is compiled or run;
+    InputError names the first. The battery runs the coupled plant in the compiled loop and
+    records what it reads: a co-simulation (``solver.communication_step_s``, an FMU mechanism)
+    and ``solver.record_signals`` are refused, not ignored."""
+    solver = scenario.solver
+    if solver.mechanism_fmu is not None:
+        raise InputError(
+            "solver.mechanism_fmu: acceptance runs the built-in coupled plant, not an FMU; "
+            "remove solver.mechanism_fmu and solver.communication_step_s"
+        )
+    if solver.communication_step_s is not None:
+        raise InputError(
+            "solver.communication_step_s: acceptance runs the coupled plant; "
+            "remove solver.communication_step_s"
+        )
+    if solver.record_signals is not None:
+        raise InputError(
+            "solver.record_signals: acceptance records what its battery reads and writes no "
+            "traces; remove solver.record_signals"
+        )
+    if scenario.reference.loop != "position":
+        raise InputError(
+            f"acceptance: {scenario.name} is a speed-loop scenario; the battery needs a position "
+            "loop (a position_mm or rudder_deg reference)"
+        )
+    variants = dict(scenario.variants())
+    unknown = [label for label in labels or () if label not in variants]
+    if unknown:
+        raise InputError(
+            f"--label: {unknown[0]!r} is no controller set of {scenario.name}; "
+            f"choose from: {', '.join(variants)}"
+        )
+
+
 def run_acceptance(
     scenario: Scenario,
     labels: list[str] | None = None,
@@ -495,19 +530,9 @@ def run_acceptance(
     from .batch import dask_client, map_runs
 
     battery = battery or Battery()
-    if scenario.reference.loop != "position":
-        raise InputError(
-            f"acceptance: {scenario.name} is a speed-loop scenario; the battery needs a position "
-            "loop (a position_mm or rudder_deg reference)"
-        )
+    check_acceptance(scenario, labels)
     variants = dict(scenario.variants())
     chosen = list(labels or variants)
-    unknown = [label for label in chosen if label not in variants]
-    if unknown:
-        raise InputError(
-            f"--label: {unknown[0]!r} is no controller set of {scenario.name}; "
-            f"choose from: {', '.join(variants)}"
-        )
     tagged = [
         (label, tag, job) for label in chosen for tag, job in plan_battery(variants[label], battery)
     ]
