@@ -3,6 +3,7 @@ a custom law that fails, results that prove themselves whole, and every command 
 refusing each solver setting."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -111,3 +112,172 @@ def test_a_law_returning_a_non_finite_command_is_named(speed_scenario, value):
     )
     assert message.endswith("at t = 0.0005 s; a command must be finite")
     assert "gains" not in message
+
+
+# --- results that prove themselves whole -----------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def saved_runs(tmp_path_factory):
+    """One saved run in each trace format."""
+    base = tmp_path_factory.mktemp("saved")
+    for fmt in ("parquet", "csv", "mat"):
+        result = invoke("run", "speed-step", "-c", "speed=pi", *SHORT, "--format", fmt,
+                        "--out", str(base / fmt))  # fmt: skip
+        assert result.exit_code == 0, result.output
+    return base
+
+
+def damaged_copy(saved_runs, tmp_path, fmt: str, name: str, damage) -> Path:
+    import shutil
+
+    folder = tmp_path / f"{fmt}-copy"
+    shutil.copytree(saved_runs / fmt, folder)
+    path = folder / name
+    path.write_bytes(damage(path.read_bytes()))
+    return folder
+
+
+def cut_at_a_line_break(data: bytes) -> bytes:
+    half = data[: len(data) // 2]
+    return half[: half.rfind(b"\n") + 1] or half
+
+
+DAMAGES = {
+    "cut": cut_at_a_line_break,
+    "header only": lambda data: data.split(b"\n")[0] + b"\n",
+    "empty": lambda data: b"",
+    "a flipped bit": lambda data: data[:200] + bytes([data[200] ^ 1]) + data[201:],
+}
+
+
+def assert_load_refused(folder, needle: str) -> str:
+    from emasim.errors import DamagedResult
+    from emasim.sim.result import Result
+
+    with pytest.raises(DamagedResult) as err:
+        Result.load(folder)
+    message = str(err.value)
+    assert needle in message and "\n" not in message, message
+    return message
+
+
+@pytest.mark.parametrize("damage", DAMAGES)
+@pytest.mark.parametrize("fmt", ["parquet", "csv", "mat"])
+def test_load_refuses_damaged_traces(saved_runs, tmp_path, fmt, damage):
+    folder = damaged_copy(saved_runs, tmp_path, fmt, f"result.{fmt}", DAMAGES[damage])
+    message = assert_load_refused(folder, f"result.{fmt}")
+    assert "truncated" in message or "SHA-256" in message
+
+
+@pytest.mark.parametrize("name", ["meta.json", "metrics.json", "scenario.toml"])
+def test_load_refuses_damaged_records(saved_runs, tmp_path, name):
+    folder = damaged_copy(saved_runs, tmp_path, "parquet", name, lambda d: d[:-3] + b"}}}")
+    assert_load_refused(folder, name)
+
+
+def test_load_reads_what_it_wrote_and_counts_the_rows(saved_runs):
+    from emasim.sim.result import Result
+
+    for fmt in ("parquet", "csv", "mat"):
+        meta = json.loads((saved_runs / fmt / "meta.json").read_text())
+        assert meta["traces"] == {"file": f"result.{fmt}", "rows": 500, "columns": 25}
+        marker = json.loads((saved_runs / fmt / ".emasim-result").read_text())
+        assert set(marker["sha256"]) == set(marker["files"])
+        assert Result.load(saved_runs / fmt).data.shape == (500, 25)
+
+
+def test_load_refuses_a_foreign_or_missing_folder_and_an_unproven_result(saved_runs, tmp_path):
+    assert_load_refused(tmp_path / "nowhere", "nowhere: does not exist")
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "result.csv").write_text("t_s\n0.0\n")
+    assert_load_refused(tmp_path / "mine", "not an emasim result")
+    # a result written before manifests carried checksums: it cannot be proven whole
+    folder = damaged_copy(saved_runs, tmp_path, "csv", "meta.json", lambda d: d)
+    marker = json.loads((folder / ".emasim-result").read_text())
+    del marker["sha256"]
+    (folder / ".emasim-result").write_text(json.dumps(marker))
+    assert_load_refused(folder, "cannot be proven whole")
+
+
+# --- every command honours every solver setting, or refuses it in one line -----------------
+
+LUMPED_COSIM = ["--set", "solver.communication_step_s=0.001"]  # position-step: no linkage
+FMU = ["--set", "solver.communication_step_s=0.001", "--set", "solver.mechanism_fmu=mech.fmu"]
+TINY = ["--set", "duration_s=0.02"]
+
+
+def command_line(command: str, scenario: str, out: Path) -> list[str]:
+    """``command`` on ``scenario`` into ``out``, as short as the command allows."""
+    if command == "run":
+        return ["run", scenario, "--no-plot", "--out", str(out)]
+    if command == "study":
+        return ["study", scenario, "--vary", "seed=1", "--workers", "1", "--out", str(out)]
+    if command == "tune":
+        return ["tune", scenario, "--trials", "1", "--save", str(out / "tuned.toml")]
+    return ["acceptance", scenario, "--out", str(out)]
+
+
+@pytest.mark.parametrize("command", ["run", "study", "tune", "acceptance"])
+@pytest.mark.parametrize(
+    ("scenario", "settings", "needle"),
+    [
+        ("position-step", LUMPED_COSIM, "solver.communication_step_s"),
+        ("cosim-step", FMU, "solver.mechanism_fmu"),
+    ],
+    ids=["co-simulation of a lumped plant", "an FMU without --trust-fmu"],
+)
+def test_a_setting_no_command_can_honour_is_refused_first(
+    tmp_path, monkeypatch, command, scenario, settings, needle
+):
+    """Refused in one line, before anything is compiled or written (reproduce takes no
+    scenario: it runs the paper's own)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mech.fmu").write_bytes(b"PK\x05\x06" + bytes(18))
+    before = sorted(p.name for p in tmp_path.iterdir())
+    args = command_line(command, scenario, tmp_path / "out")
+    line = one_error_line(invoke(*args, *TINY, *settings))
+    assert needle in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        ["--set", "solver.communication_step_s=0.001"],
+        ["--set", "solver.record_signals=['iq_A']"],
+    ],
+    ids=["co-simulation", "record_signals"],
+)
+def test_acceptance_refuses_what_its_battery_cannot_honour(tmp_path, settings):
+    line = one_error_line(
+        invoke("acceptance", "cosim-step", *settings, "--out", str(tmp_path / "a"))
+    )
+    assert "acceptance" in line and "remove solver." in line
+    assert not (tmp_path / "a").exists()
+
+
+SOLVER_SETTINGS = {
+    "sample_period_s": "solver.sample_period_s=0.0002",
+    "step_s": "solver.step_s=0.000005",
+    "record_period_s": "solver.record_period_s=0.002",
+    "record_signals": "solver.record_signals=['iq_A']",
+    "communication_step_s": "solver.communication_step_s=0.001",
+}
+
+
+def test_run_honours_every_solver_setting(tmp_path):
+    import pandas as pd
+
+    def traces(name, *settings):
+        out = tmp_path / name
+        args = ["run", "cosim-step", "--label", "PID", "--set", "duration_s=0.02", "--no-plot"]
+        result = invoke(*args, *settings, "--out", str(out))
+        assert result.exit_code == 0, result.output
+        return pd.read_parquet(out / "result.parquet")
+
+    base = traces("base")
+    for name, setting in SOLVER_SETTINGS.items():
+        changed = traces(name, "--set", setting)
+        same = changed.shape == base.shape and bool((changed.values == base.values).all())
+        assert not same, f"{setting} did not change the run"

@@ -15,3 +15,8 @@ class SimulationDiverged(EmasimError):
 
 class LawFailed(SimulationDiverged):
     """A controller law raised or returned a non-finite command; the run stopped there."""
+
+
+class DamagedResult(EmasimError):
+    """A saved result cannot be read back whole: a file is missing, truncated, changed since
+    emasim wrote it, or not emasim's; the message names the file and what is wrong."""

@@ -37,6 +37,7 @@ which turns NaN and infinity into ``null``, so every JSON file is valid JSON.
 import contextlib
 import datetime
 import fcntl
+import hashlib
 import json
 import math
 import os
@@ -47,7 +48,7 @@ import stat
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import EmasimError
+from .errors import DamagedResult, EmasimError
 
 MARKER = ".emasim-result"
 JOURNAL = ".emasim-journal"
@@ -430,16 +431,81 @@ def write_folder(
 def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> None:
     """The marker that makes ``folder`` an emasim result: written first, then again with the
     manifest of ``files`` emasim wrote (relative paths, from the build journal), which alone
-    it may ever delete, each with its stamp (:func:`_stamp`)."""
+    it may ever delete, each with its stamp (:func:`_stamp`) and its SHA-256 (``sha256``:
+    what proves it whole, :func:`verify_files`)."""
     from . import __version__
 
     files = files or []
-    stamps = {}
+    stamps, sums = {}, {}
     for name in files:
         with contextlib.suppress(OSError):  # a name that is not there has no stamp
-            stamps[name] = _stamp(os.lstat(folder / name))
-    record = {"kind": kind, "emasim_version": __version__, "files": files, "stamps": stamps}
+            st = os.lstat(folder / name)
+            stamps[name] = _stamp(st)
+            if stat.S_ISREG(st.st_mode):
+                sums[name] = sha256_of(folder / name)
+    record = {
+        "kind": kind,
+        "emasim_version": __version__,
+        "files": files,
+        "stamps": stamps,
+        "sha256": sums,
+    }
     (folder / MARKER).write_text(json_text(record))
+
+
+def sha256_of(path: Path) -> str:
+    """The SHA-256 of a file's bytes, in hex."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def verify_files(folder: Path, names: list[str]) -> None:
+    """Raise DamagedResult unless ``folder`` is an emasim result (or a run folder inside one,
+    as a comparison's are) whose manifest lists each of ``names`` with the size and SHA-256
+    the file still has. A result written before manifests carried checksums cannot be proven
+    whole and is refused too."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        what = "does not exist" if not os.path.lexists(folder) else "is not a folder"
+        raise DamagedResult(f"{folder}: {what}; a result is a folder emasim wrote")
+    root, prefix = folder, ""
+    if not (folder / MARKER).is_file() and (folder.parent / MARKER).is_file():
+        root, prefix = folder.parent, folder.name + "/"  # a run of a comparison
+    try:
+        record = json.loads((root / MARKER).read_text())
+        listed, stamps, sums = record["files"], record["stamps"], record.get("sha256")
+        version = record.get("emasim_version", "an earlier version")
+    except FileNotFoundError:
+        raise DamagedResult(f"{folder}: not an emasim result (it has no {MARKER})") from None
+    except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
+        raise DamagedResult(f"{root / MARKER}: damaged (not emasim's manifest)") from None
+    if not isinstance(sums, dict):
+        raise DamagedResult(
+            f"{root}: written by emasim {version}, whose manifest has no checksums, so it "
+            f"cannot be proven whole; run its scenario.toml again"
+        )
+    for name in names:
+        path, key = folder / name, prefix + name
+        if key not in listed or key not in sums:
+            found = "is not one of the files emasim wrote there" if path.exists() else "missing"
+            raise DamagedResult(f"{path}: {found}")
+        try:
+            size = os.stat(path).st_size
+            if size != stamps[key][0]:
+                raise DamagedResult(
+                    f"{path}: truncated or changed: {size} bytes, emasim wrote {stamps[key][0]}"
+                )
+            if sha256_of(path) != sums[key]:
+                raise DamagedResult(f"{path}: damaged: its SHA-256 is not the one emasim wrote")
+        except FileNotFoundError:
+            raise DamagedResult(f"{path}: missing") from None
+        except OSError as err:
+            raise DamagedResult(f"{path}: cannot be read ({err.strerror or err})") from None
+        except (KeyError, IndexError, TypeError):
+            raise DamagedResult(f"{root / MARKER}: damaged (not emasim's manifest)") from None
 
 
 def _move_into_place(tmp: Path, path: Path, force: bool, what: str, refuse: bool) -> bool:

@@ -12,7 +12,9 @@ did not write (replacing an earlier emasim result needs ``force=True``). Without
 """
 
 import json
+import os
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,8 +23,17 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
 
-from ..errors import InputError
-from ..output import RUNS_ROOT, fresh_folder, json_text, new_file, slug, write_folder, write_new
+from ..errors import DamagedResult, InputError
+from ..output import (
+    RUNS_ROOT,
+    fresh_folder,
+    json_text,
+    new_file,
+    slug,
+    verify_files,
+    write_folder,
+    write_new,
+)
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -169,6 +180,9 @@ class Result:
         meta = self.meta
         if self.description is not None:
             meta = {**meta, "run": self.description.to_json()}
+        if traces:  # what Result.load checks the traces against (beside the manifest's sum)
+            rows, width = self.data.shape
+            meta = {**meta, "traces": {"file": path.name, "rows": rows, "columns": width}}
         write_records(folder, self.metrics, meta, self.scenario)
         if plot:
             _drawer(figures).save(self.plot, folder / "plot.png")
@@ -189,18 +203,33 @@ class Result:
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
-        """Read a run folder written by :meth:`save` (its traces in any of TRACE_FORMATS)."""
+        """Read a run folder written by :meth:`save` (its traces in any of TRACE_FORMATS).
+
+        Every file read must be the one emasim wrote, whole (its size and SHA-256 in the
+        folder's manifest, :func:`emasim.output.verify_files`), and the traces must hold the
+        rows and columns meta.json counts; anything else raises
+        :class:`emasim.errors.DamagedResult` naming the file."""
         folder = Path(folder)
-        columns, data = read_traces(folder)
-        meta = json.loads((folder / "meta.json").read_text())
+        trace = _trace_file(folder)
+        verify_files(folder, [trace.name, "meta.json", "metrics.json", "scenario.toml"])
+        meta = _parse(folder / "meta.json", json.loads)
+        columns, data = _parse(trace, lambda _: read_traces(folder))
+        counted = meta.pop("traces", None)
+        if not isinstance(counted, dict) or counted.get("file") != trace.name:
+            raise DamagedResult(f"{folder / 'meta.json'}: does not count the rows of {trace.name}")
+        if data.shape != (counted.get("rows"), counted.get("columns")):
+            raise DamagedResult(
+                f"{trace}: holds {data.shape[0]} rows of {data.shape[1]} columns; meta.json "
+                f"counts {counted.get('rows')} of {counted.get('columns')}"
+            )
         run = meta.pop("run", None)
         return cls(
             columns=columns,
             data=data,
-            scenario=tomllib.loads((folder / "scenario.toml").read_text()),
+            scenario=_parse(folder / "scenario.toml", tomllib.loads),
             meta=meta,
-            metrics=json.loads((folder / "metrics.json").read_text()),
-            description=RunDescription.from_json(run) if run is not None else None,
+            metrics=_parse(folder / "metrics.json", json.loads),
+            description=_parse(folder / "meta.json", lambda _: _description(run)),
         )
 
 
@@ -251,14 +280,45 @@ class Comparison:
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
-        """Read a comparison folder written by :meth:`save`."""
+        """Read a comparison folder written by :meth:`save`, each file checked as
+        :meth:`Result.load` checks a run's."""
         folder = Path(folder)
-        metrics = json.loads((folder / "metrics.json").read_text())
+        verify_files(folder, ["meta.json", "metrics.json", "scenario.toml"])
+        metrics = _parse(folder / "metrics.json", json.loads)
+        if not isinstance(metrics, dict):
+            raise DamagedResult(f"{folder / 'metrics.json'}: not a table of label -> metrics")
         return cls(
             results={label: Result.load(folder / slug(label)) for label in metrics},
-            scenario=tomllib.loads((folder / "scenario.toml").read_text()),
-            meta=json.loads((folder / "meta.json").read_text()),
+            scenario=_parse(folder / "scenario.toml", tomllib.loads),
+            meta=_parse(folder / "meta.json", json.loads),
         )
+
+
+def _trace_file(folder: Path) -> Path:
+    """The traces' file of a run folder: result.<format> for the first of TRACE_FORMATS there."""
+    for name in TRACE_FORMATS:
+        path = folder / f"result.{name}"
+        if os.path.lexists(path):
+            return path
+    verify_files(folder, [])  # a missing folder, or one that is no result, says so first
+    names = ", ".join(f"result.{name}" for name in TRACE_FORMATS)
+    raise DamagedResult(f"{folder}: holds no traces ({names}); a run saved with them can be loaded")
+
+
+def _parse(path: Path, parse):
+    """``parse(text)`` of a file Result.load reads; any failure is a DamagedResult naming it."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # numpy's 'empty input': the row count says it
+            return parse(path.read_text() if path.suffix in (".json", ".toml") else path)
+    except DamagedResult:
+        raise
+    except Exception as err:
+        raise DamagedResult(f"{path}: cannot be read ({type(err).__name__}: {err})") from None
+
+
+def _description(run) -> "RunDescription | None":
+    return RunDescription.from_json(run) if run is not None else None
 
 
 def default_folder(scenario: dict, what: str) -> Path:
