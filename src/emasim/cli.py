@@ -7,6 +7,7 @@ interruption says so (exit 130), and an unexpected failure is one line naming it
 write (:mod:`emasim.output`); replacing an earlier emasim result needs ``--force``.
 """
 
+import errno
 import logging
 import os
 import sys
@@ -68,8 +69,30 @@ def _usage_or_internal_error(err: Exception) -> int:
         return err.exit_code
     if os.environ.get("EMASIM_TRACEBACK"):
         raise err
+    full = _disk_full(err)
+    if full is not None:
+        _say_error(f"{full}; free some space and run the same command again")
+        return 1
     _say_error(f"internal error: {type(err).__name__}: {err} (EMASIM_TRACEBACK=1 shows where)")
     return 1
+
+
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+def _disk_full(err: BaseException) -> str | None:
+    """What a failure caused by a full disk or quota says (an OSError, or a database driver's
+    error, in the chain of causes), None for any other failure."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        seen.add(id(err))
+        if isinstance(err, OSError) and err.errno in DISK_FULL:
+            where = f": {err.filename}" if err.filename else ""
+            return f"cannot write{where} ({err.strerror or os.strerror(err.errno)})"
+        if "database or disk is full" in str(err):
+            return "cannot write the database (database or disk is full)"
+        err = err.__cause__ or err.__context__
+    return None
 
 
 app = typer.Typer(

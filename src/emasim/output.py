@@ -423,6 +423,9 @@ def write_folder(
             if _move_into_place(tmp, candidate, force, what, refuse=not unique):
                 return candidate
         raise OutputError(f"{what} {path}: no free folder name")
+    except OSError as err:  # a disk full, say, while writing: one line, cleaned up
+        remove_own(tmp)
+        raise _os_error(what, path, err) from None
     except BaseException:
         remove_own(tmp)  # what this process created there; anything else stays
         raise

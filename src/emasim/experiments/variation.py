@@ -36,6 +36,8 @@ DISTRIBUTIONS = {"uniform": 2, "normal": 2, "loguniform": 2, "integers": 2}
 RANGES = {"linspace": 3, "geomspace": 3}
 _CALL = re.compile(r"^(?P<name>[a-z]+)\((?P<args>.*)\)$")
 MAX_SAMPLES = 100_000
+INT_MIN, INT_MAX = -(2**63), 2**63 - 1  # what integers(a, b) draws (numpy's int64)
+FLOAT_MAX = float(np.finfo(float).max)
 
 
 @dataclass(frozen=True)
@@ -136,12 +138,18 @@ def _values(body: str, where: str) -> tuple:
 
 def _numbers(args: str, where: str) -> list[float]:
     try:
-        numbers = [float(a) for a in args.split(",")] if args.strip() else []
+        numbers = [_number(a) for a in args.split(",")] if args.strip() else []
     except ValueError:
         raise InputError(f"{where}: expected numbers in ({args})") from None
     if not all(math.isfinite(x) for x in numbers):
         raise InputError(f"{where}: the numbers must be finite, got ({args})")
     return numbers
+
+
+def _number(text: str) -> int | float:
+    """A whole number as an int (exact, however large), else a float."""
+    text = text.strip()
+    return int(text) if re.fullmatch(r"[+-]?\d+", text) else float(text)
 
 
 def _range(kind: str, args: list[float], where: str) -> tuple[float, ...]:
@@ -164,6 +172,15 @@ def _check_distribution(kind: str, args: list[float], where: str) -> None:
         raise InputError(f"{where}: loguniform(a, b) needs a > 0, got {a:g}")
     if kind == "integers" and not (a == int(a) and b == int(b)):
         raise InputError(f"{where}: integers(a, b) needs whole numbers, got {a:g} and {b:g}")
+    if kind == "integers" and not (INT_MIN <= int(a) and int(b) <= INT_MAX):
+        raise InputError(
+            f"{where}: integers(a, b) needs whole numbers from {INT_MIN} to {INT_MAX}, "
+            f"got {a:g} and {b:g}"
+        )
+    if kind == "uniform" and not math.isfinite(b - a):
+        raise InputError(
+            f"{where}: uniform(a, b) needs b - a at most {FLOAT_MAX:g}, got {a:g} and {b:g}"
+        )
 
 
 @dataclass(frozen=True)
