@@ -678,6 +678,7 @@ RUN = ["run", "speed-step", "-c", "speed=pi", *SHORT]
 TUNE = ["tune", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.05", "--trials", "1"]
 DEEP = "[" * 100 + "]" * 100
 COSIM_FMU = ["--set", "solver.communication_step_s=1e-3", "--set", 'solver.mechanism_fmu="x.fmu"']
+STUDY = ["study", "cosim-step", "--out", "s", "--set", "duration_s=0.05"]
 
 # (id, arguments, what the error line must name)
 CLI = [
@@ -741,6 +742,29 @@ CLI = [
         "mechanism-fmu-untrusted",
         ["run", "cosim-step", "-c", "pid", *SHORT, *COSIM_FMU],
         "--trust-fmu",
+    ),
+    # every scenario rule is checked before anything runs or is written (issue 26)
+    ("run-cosim-lumped", [*RUN, "--set", "solver.communication_step_s=1e-3"], "communication"),
+    ("tune-cosim-lumped", [*TUNE, "--set", "solver.communication_step_s=1e-3"], "communication"),
+    ("tune-mechanism-fmu", ["tune", "cosim-step", "-c", "pid", *COSIM_FMU], "--trust-fmu"),
+    ("study-mechanism-fmu-untrusted", [*STUDY, *COSIM_FMU], "--trust-fmu"),
+    (
+        "study-cosim-lumped",
+        ["study", "speed-step", "--out", "s", "--set", "solver.communication_step_s=1e-3"],
+        "communication_step_s",
+    ),
+    ("study-integers-beyond-int64", [*STUDY, "--vary", "seed=integers(0, 1e30)"], "--vary seed"),
+    ("study-uniform-overflow", [*STUDY, "--vary", "seed=uniform(-1e308, 1e308)"], "--vary seed"),
+    ("study-scheduler-nothing-there", [*STUDY, "--scheduler", "tcp://127.0.0.1:1"], "--scheduler"),
+    (
+        "reproduce-robustness-one-bench",
+        ["reproduce", "--robustness", "--only", "bench-step"],
+        "both",
+    ),
+    (
+        "reproduce-robustness-no-bench",
+        ["reproduce", "--robustness", "--only", "speed-step"],
+        "both",
     ),
     ("tune-storage-unknown-scheme", [*TUNE, "--storage", "nosuchdb://x"], "--storage"),
     ("tune-storage-user-file", [*TUNE, "--storage", "sqlite:///victim.txt"], "--storage"),

@@ -348,10 +348,10 @@ def run(
         # the compiled core (numba) loads only for a valid scenario
         from .analysis.figure_process import figure_writer
         from .experiments.batch import run as run_any
-        from .sim.cosim import check_fmu_trust
+        from .sim.cosim import check_runnable
         from .sim.result import check_trace_format
 
-        check_fmu_trust(sc, trust_fmu)
+        check_runnable(sc, trust_fmu)  # every rule, before the compile notice
         check_trace_format(trace_format)
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time
@@ -446,7 +446,7 @@ def tune(
     in proportion to its knobs, an early stop once converged, a range widened where the optimum
     sits on its bound; resumable (a study is keyed by the fully resolved scenario); writes the
     scenario with the tuned gains and a record of each set's search."""
-    from .experiments.batch import dask_client
+    from .experiments.batch import check_scheduler, dask_client
     from .output import RUNS_ROOT, check_file, fresh_file, slug, write_file
     from .scenarios.loader import (
         apply_controller_choice,
@@ -455,6 +455,7 @@ def tune(
         read_scenario_text,
         validate_scenario,
     )
+    from .sim.cosim import check_runnable
     from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
 
     budget = Budget(trials, trials_per_knob, patience_per_knob or None, tolerance, widen)
@@ -469,6 +470,9 @@ def tune(
         for item in setting or []:
             apply_setting(raw, item)
         sc = validate_scenario(raw, source)
+        check_runnable(sc, trust_fmu=False)
+        if scheduler is not None:
+            check_scheduler(scheduler)  # before the storage is made
         root = RUNS_ROOT / "tune"
         if save is not None:
             check_file(save, force, is_tuned_scenario, "--save")
@@ -554,6 +558,7 @@ def study(
 ) -> None:
     """Run a grid or a Monte Carlo over any scenario keys, every controller set on every sample,
     on Dask; write a run folder per run, metrics.parquet and a summary; resumable."""
+    from .experiments.batch import check_scheduler
     from .experiments.study import StudySpec, run_study
 
     spec = StudySpec(
@@ -569,21 +574,52 @@ def study(
     start = time.perf_counter()
     bar, progress = _runs_bar(f"study of {scenario}")
 
+    shown = []
+
+    def progress_shown(done: int, total: int) -> None:
+        if not shown:  # the bar shows once the study is accepted: a refusal is one line
+            bar.start()
+            shown.append(True)
+        progress(done, total)
+
     try:
-        with bar:  # every sample is validated before a cluster starts
-            result = run_study(spec, out, scheduler, workers, progress, trust_fmu)
+        if scheduler is not None:
+            check_scheduler(scheduler)
+        # every sample is validated before a cluster starts
+        result = run_study(spec, out, scheduler, workers, progress_shown, trust_fmu)
     except EmasimError as err:
         _fail(err)
+    finally:
+        if shown:
+            bar.stop()
     _print_study(result)
     log.info(
         f"{len(result.table)} runs in {out}/ (metrics.parquet, summary/) in "
-        f"{time.perf_counter() - start:.1f} s"
+        f"{time.perf_counter() - start:.1f} s: {_status_line(result.table)}"
     )
 
 
+def _status_line(table) -> str:
+    """'3 ok, 1 diverged, 0 failed'."""
+    from .experiments.study import status_counts
+
+    return ", ".join(f"{n} {kind}" for kind, n in status_counts(table).items())
+
+
 def _print_study(result) -> None:
-    """Median [5 %, 95 %] of each metric that varies, one column per controller set."""
-    if not _loud():
+    """How many runs are ok, diverged and failed, the first reasons (warnings), and the median
+    [5 %, 95 %] of each metric that varies, one column per controller set."""
+    from .experiments.study import LOG_FILE, OK, first_reasons, status_counts
+
+    counts = status_counts(result.table)
+    if counts[OK] < len(result.table):
+        log.warning(
+            f"{len(result.table)} runs: {_status_line(result.table)} (status in "
+            f"metrics.parquet; worker messages in {result.folder / LOG_FILE}); the first:"
+        )
+        for line in first_reasons(result.table):
+            log.warning(line)
+    if not _loud() or not counts[OK]:
         return
     from .experiments.study import metric_columns
 
@@ -600,7 +636,8 @@ def _print_study(result) -> None:
             d = per[metric]
             cells.append(f"{d['p50']:.4g} [{d['p05']:.3g}, {d['p95']:.3g}]" if d["runs"] else "")
         table.add_row(metric, *cells)
-    console.print(table)
+    if table.row_count:
+        console.print(table)
 
 
 @app.command()
@@ -638,6 +675,7 @@ def reproduce(
     robustness of the headline verdicts is that of the last --robustness study of these
     experiments and version, when one exists."""
     from .analysis.paper_report import EXPERIMENTS
+    from .experiments.reproduction import check_robustness
     from .experiments.reproduction import reproduce as run_all
     from .output import check_folder
 
@@ -652,6 +690,8 @@ def reproduce(
     start = time.perf_counter()
     progress = _LazyProgress("reproducing the paper")
     try:
+        if robustness:
+            check_robustness(only)
         if out is not None:
             check_folder(out, force)
         _notice_compile()

@@ -10,12 +10,15 @@ finishes, and returns them in order. Results do not depend on the schedule: numb
 generator is per thread and seeded at the start of each run.
 """
 
+import asyncio
+import concurrent.futures
 import contextlib
 import logging
 import os
 import socket
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import InputError
@@ -29,6 +32,7 @@ if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
 
 CONNECT_TIMEOUT_S = 10
+HANDSHAKE_TIMEOUT_S = 5  # a Dask scheduler answers its identity in milliseconds
 
 
 def workers_available() -> int:
@@ -37,17 +41,23 @@ def workers_available() -> int:
 
 
 @contextlib.contextmanager
-def dask_client(scheduler: str | None = None, workers: int | None = None, processes: bool = True):
+def dask_client(
+    scheduler: str | None = None,
+    workers: int | None = None,
+    processes: bool = True,
+    log_file: Path | None = None,
+):
     """A ``dask.distributed.Client``: to the cluster at ``scheduler``, else to a LocalCluster of
     ``workers`` (default: one per core) single-threaded worker processes, or with
     ``processes=False`` one worker of that many threads in this process. A cluster it started
-    is closed on exit; its worker processes show Python warnings as one line each
-    (emasim.experiments.worker_setup)."""
+    is closed on exit; its worker processes show Python warnings as one line each, and with
+    ``log_file`` print everything there, not on the terminal (emasim.experiments.worker_setup).
+    """
     from dask.distributed import Client, LocalCluster
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
     if scheduler is not None:
-        _check_reachable(scheduler)
+        check_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, ValueError, TypeError) as err:
@@ -65,16 +75,22 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, proces
     )
     with cluster, Client(cluster) as client:
         if processes:
-            from .worker_setup import OneLineWarnings
+            from .worker_setup import LogToFile, OneLineWarnings
 
+            if log_file is not None:
+                client.register_plugin(LogToFile(str(Path(log_file).absolute())))
             client.register_plugin(OneLineWarnings())
         yield client
 
 
-def _check_reachable(scheduler: str) -> None:
-    """Refuse, in one line, an address that is not ``scheme://host:port`` or a TCP scheduler
-    that does not answer (before a Client exists: a Client that failed to connect still
-    tries to close at exit, and prints a traceback)."""
+def check_scheduler(scheduler: str, timeout_s: float | None = None) -> None:
+    """Refuse, in one line, an address that is not ``scheme://host:port``, or one where no
+    Dask scheduler answers within ``timeout_s``: a real Dask handshake and an ``identity``
+    request, whatever listens there (nothing, an HTTP server, a listener that sends garbage
+    or nothing; ``timeout_s`` defaults to HANDSHAKE_TIMEOUT_S). Checked before a Client
+    exists: a Client that failed to connect still tries to close at exit, and prints a
+    traceback; one to a listener that never answers waits."""
+    timeout_s = HANDSHAKE_TIMEOUT_S if timeout_s is None else timeout_s
     from distributed.comm import parse_address, parse_host_port
 
     try:
@@ -84,13 +100,44 @@ def _check_reachable(scheduler: str) -> None:
         raise InputError(
             f"--scheduler {scheduler}: not an address like tcp://host:8786 ({err})"
         ) from None
-    if scheme == "tcp":
+    if scheme == "tcp":  # nothing listening: said at once (Dask's connect retries)
         try:
-            socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+            socket.create_connection((host, port), timeout=timeout_s).close()
         except OSError as err:
             raise InputError(
                 f"--scheduler {scheduler}: nothing answers there ({err.strerror or err})"
             ) from None
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:  # its own event loop
+        reply = pool.submit(asyncio.run, _identity(scheduler, timeout_s)).result()
+    if isinstance(reply, BaseException):
+        why = (
+            f"no answer within {timeout_s:g} s"
+            if isinstance(reply, TimeoutError)
+            else " ".join(str(reply).split())[:200] or type(reply).__name__
+        )
+        raise InputError(f"--scheduler {scheduler}: no Dask scheduler answers there ({why})")
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        shown = reply.get("type") if isinstance(reply, dict) else type(reply).__name__
+        raise InputError(f"--scheduler {scheduler}: not a Dask scheduler (it says it is a {shown})")
+
+
+async def _identity(address: str, timeout_s: float):
+    """The ``identity`` reply of the Dask server at ``address``, or the exception that stopped
+    the handshake or the request (a TimeoutError after ``timeout_s`` in all)."""
+    from distributed.comm import connect
+
+    async def ask():
+        comm = await connect(address, timeout=timeout_s)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    try:
+        return await asyncio.wait_for(ask(), timeout_s)
+    except (Exception, MemoryError) as err:  # garbage read as a frame length: MemoryError
+        return err
 
 
 def map_runs(

@@ -18,11 +18,13 @@ from ..analysis.paper_report import (
     notes,
     write_report,
 )
+from ..errors import InputError
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
 from . import wear
 from .ablation import STAGES, ablation_runs, ablation_table
 from .batch import comparison_of, run_all
+from .robustness import SCENARIOS as ROBUST
 from .robustness import UNCERTAINTY, latest, run_robustness
 
 if TYPE_CHECKING:
@@ -128,6 +130,18 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tupl
     return figures, later
 
 
+def check_robustness(only: list[str] | None) -> None:
+    """Refuse ``--robustness`` with an ``--only`` that leaves out a bench experiment: its Monte
+    Carlo and wear study weigh the headline verdicts, which take both (robustness.SCENARIOS)."""
+    missing = [name for name in ROBUST if only and name not in only]
+    if missing:
+        raise InputError(
+            f"--robustness: the Monte Carlo of the headline verdicts runs both bench "
+            f"experiments ({', '.join(ROBUST)}); --only leaves out {', '.join(missing)} "
+            f"(add --only {' --only '.join(missing)}, or leave --robustness out)"
+        )
+
+
 def _counted(progress):
     """A ``progress(done, total)`` for a progress that takes a fraction (or None)."""
     return None if progress is None else (lambda done, total: progress(done / total))
@@ -145,7 +159,8 @@ def reproduce(
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
     for the bench experiments among them. ``robustness_runs``: run (or resume) the Monte Carlo
     of emasim.experiments.robustness with that many runs per controller set, and the wear
-    study (emasim.experiments.wear); without it, the report shows the largest complete ones of
+    study (emasim.experiments.wear): refused unless both bench experiments are chosen
+    (:func:`check_robustness`); without it, the report shows the largest complete ones of
     these experiments and version, if any.
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
@@ -154,6 +169,8 @@ def reproduce(
     """
     from ..analysis.figure_process import DrawHere, figure_writer
 
+    if robustness_runs is not None:
+        check_robustness(only)
     if out is not None:
         check_folder(Path(out), force)
 

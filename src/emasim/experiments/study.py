@@ -12,18 +12,24 @@ plants (paired). Its folder holds
   ``meta.json`` (with ``study``: run id, label, sample, values) and, with ``traces``,
   ``result.parquet``;
 * ``metrics.parquet``: one row per finished run: ``run_id``, ``label``, ``sample``, ``status``
-  ('ok' or 'diverged: ...'), each variation's value (the factor for a '*' variation), then every
-  metric; rewritten atomically as runs finish (at most every TABLE_EVERY_S, and at the end);
+  ('ok', 'diverged: ...' or 'failed: ...', a run that failed for any other reason: a rule
+  checked only as it ran, a folder that could not be written), each variation's value (the
+  factor for a '*' variation), then every metric; rewritten atomically as runs finish (at
+  most every TABLE_EVERY_S, and at the end);
 * ``summary/``: ``summary.md`` and ``summary.json`` (each metric's distribution for each
-  controller set) and ``distributions.png``, written when the study is complete.
+  controller set) and ``distributions.png``, written when the study is complete;
+* ``workers.log``: what the worker processes of the LocalCluster a study starts print (warnings,
+  and each failed run's traceback), never the user's terminal.
 
 The run folders are the record: a killed client or worker loses no finished run, and the same
-command resumes, running only what has no folder yet (a killed worker's runs are re-run by
+command resumes, running only what has no finished folder yet, a failed run, or a damaged one
+(a run folder of emasim's that lost a file is replaced; a killed worker's runs are re-run by
 Dask on another worker; the runs go to the workers in groups, :func:`.batch.task_groups`, and
 a group run again skips the runs it finished before). A folder that holds another study is
-refused: a study is never replaced. One client at a time holds a study (a lock on its
-study.json). The workers write the run folders themselves: on a cluster of several machines
-the folder must be on a file system they share.
+refused: a study is never replaced; every run's scenario rules (an FMU's trust, the
+co-simulation's) and the scheduler are checked before the folder is made. One client at a
+time holds a study (a lock on its study.json). The workers write the run folders themselves:
+on a cluster of several machines the folder must be on a file system they share.
 """
 
 import contextlib
@@ -31,15 +37,17 @@ import fcntl
 import hashlib
 import io
 import json
+import logging
 import os
 import time
+import traceback
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, SimulationDiverged
+from ..errors import EmasimError, InputError, SimulationDiverged
 from ..output import (
     OutputError,
     check_folder,
@@ -60,6 +68,11 @@ SUMMARY_FOLDER = "summary"
 ROW_KEYS = ("run_id", "label", "sample", "status")
 TABLE_TAG = b"emasim study metrics"  # in metrics.parquet's schema metadata: the file is ours
 OK = "ok"
+DIVERGED = "diverged"
+FAILED = "failed"
+LOG_FILE = "workers.log"
+FAILURE_LOG = "emasim_worker"  # not under "emasim": the command line's console never shows it
+logging.getLogger(FAILURE_LOG).addHandler(logging.NullHandler())  # a LogToFile worker: its file
 TABLE_EVERY_S = 1.0  # metrics.parquet is rewritten at most this often while runs finish
 
 
@@ -231,35 +244,65 @@ def _resolved(resolved: dict, key: str):
 def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False) -> dict:
     """A worker's task: simulate one run, write its run folder, return its metrics row. A run
     whose folder is finished already (a task Dask runs again after a worker was lost) is read,
-    not run again."""
-    from .runs import meta_of, run_scenario
+    not run again. A run that diverges or fails for any other reason is a row that says so
+    (``status``: 'diverged: ...' or 'failed: ...', one line), in a folder marked so where it
+    can be written: it never stops the study. A failed or damaged folder of emasim's there
+    is replaced (never one holding a file emasim did not write)."""
+    from .runs import run_scenario
 
     finished = _finished_row(folder)
-    if finished is not None and finished["run_id"] == job.run_id:
+    if finished is not None and finished["run_id"] == job.run_id and not is_failed(finished):
         return finished
+    replace = os.path.lexists(folder)  # failed or damaged: write_folder refuses what is not ours
     record = {"run_id": job.run_id, "label": job.label, "sample": job.sample}
     record["values"] = job.values
-    scenario = job.scenario
     try:
-        result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
-        status, metrics = OK, result.metrics
-    except SimulationDiverged as err:
-        status, metrics, result = f"diverged: {err}", {}, None
-    if result is not None:
+        result = run_scenario(job.scenario, trust_fmu=trust_fmu, label=job.label)
         result.meta["study"] = record
-        write_folder(folder, lambda tmp: result.write_files(tmp, plot=False, traces=traces))
-    else:
-        meta = meta_of(scenario, float("nan")) | {"label": job.label, "study": record}
-        meta["status"] = status
-        resolved = scenario.model_dump(mode="json", exclude_none=True)
-        write_folder(folder, lambda tmp: _write_failed(tmp, meta, resolved))
-    return _row(record, status, metrics)
+        write = lambda tmp: result.write_files(tmp, plot=False, traces=traces)  # noqa: E731
+        write_folder(folder, write, force=replace)
+        return _row(record, OK, result.metrics)
+    except SimulationDiverged as err:
+        status = f"{DIVERGED}: {one_line(err)}"
+    except Exception as err:  # any other failure is this run's, not the study's
+        status = f"{FAILED}: {reason(err)}"
+        logging.getLogger(FAILURE_LOG).error(f"{job.run_id} {status}\n{traceback.format_exc()}")
+    with contextlib.suppress(Exception):  # a folder that cannot be written: the row says why
+        _write_failed(folder, job, record, status, replace)
+    return _row(record, status, {})
 
 
-def _write_failed(folder: Path, meta: dict, scenario: dict) -> None:
+def one_line(err: BaseException, limit: int = 300) -> str:
+    """An error's message as one line of at most ``limit`` characters."""
+    text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def reason(err: BaseException) -> str:
+    """Why a run failed, in one line: an emasim error's message, an OSError's cause and
+    file, else the exception's type and message."""
+    if isinstance(err, OSError) and not isinstance(err, OutputError) and err.strerror:
+        where = f" ({err.filename})" if err.filename else ""
+        return one_line(f"cannot write the run folder: {err.strerror}{where}")
+    if isinstance(err, EmasimError):
+        return one_line(err)
+    return one_line(f"{type(err).__name__}: {one_line(err)}")
+
+
+def is_failed(row: dict) -> bool:
+    """A row of a run that failed (not diverged): run again when the study resumes."""
+    return str(row.get("status", "")).startswith(FAILED)
+
+
+def _write_failed(folder: Path, job: Job, record: dict, status: str, replace: bool) -> None:
+    """The folder of a run that diverged or failed: its meta (with ``status``) and scenario."""
     from ..sim.result import write_records
+    from .runs import meta_of
 
-    write_records(folder, {}, meta, scenario)
+    meta = meta_of(job.scenario, float("nan")) | {"label": job.label, "study": record}
+    meta["status"] = status
+    resolved = job.scenario.model_dump(mode="json", exclude_none=True)
+    write_folder(folder, lambda tmp: write_records(tmp, {}, meta, resolved), force=replace)
 
 
 def _row(record: dict, status: str, metrics: dict) -> dict:
@@ -322,15 +365,21 @@ def run_study(
     ``progress(done, total)`` is called as runs finish.
     """
     from .. import numba_cache
-    from .batch import dask_client, map_runs
+    from ..sim.cosim import check_runnable
+    from .batch import check_scheduler, dask_client, map_runs
 
     plan = plan_study(spec)
+    for job in plan.jobs:  # every rule a run checks, before anything is made
+        check_runnable(job.scenario, trust_fmu)
+    if client is None and scheduler is not None:
+        check_scheduler(scheduler)
     folder = Path(out)
     open_folder(folder, plan)
     with _holding(folder):
         rows = finished_rows(folder)
         known = {job.run_id for job in plan.jobs}
         rows = {run_id: row for run_id, row in rows.items() if run_id in known}
+        rows = {run_id: row for run_id, row in rows.items() if not is_failed(row)}
         pending = [job for job in plan.jobs if job.run_id not in rows]
         total = len(plan.jobs)
         if progress is not None:
@@ -355,7 +404,7 @@ def run_study(
             with (
                 contextlib.nullcontext(client)
                 if client
-                else dask_client(scheduler, workers) as used
+                else dask_client(scheduler, workers, log_file=folder / LOG_FILE) as used
             ):
                 try:  # one run first only to compile: with a warm cache, all at once
                     cold = numba_cache.is_cold()
@@ -388,6 +437,7 @@ def open_folder(folder: Path, plan: Plan) -> None:
 
     def write(tmp: Path) -> None:
         write_new(tmp / STUDY_FILE, json_text(record))
+        write_new(tmp / LOG_FILE, "")
         (tmp / RUNS_FOLDER).mkdir()
 
     write_folder(folder, write, kind="study")
@@ -494,7 +544,21 @@ def summarize(table, plan: Plan) -> dict:
     }
 
 
-def summary_markdown(summary: dict, plan: Plan, diverged: dict[str, int]) -> str:
+def status_counts(table) -> dict[str, int]:
+    """How many runs of a study table are ok, diverged and failed."""
+    kinds = [str(s).split(":", 1)[0] for s in table["status"]] if len(table) else []
+    return {kind: kinds.count(kind) for kind in (OK, DIVERGED, FAILED)}
+
+
+def first_reasons(table, n: int = 3) -> list[str]:
+    """``run_id status`` of the first ``n`` runs that are not ok, in the study's order."""
+    bad = table[table["status"] != OK] if len(table) else table
+    return [f"{row.run_id} {row.status}" for row in bad.head(n).itertuples()]
+
+
+def summary_markdown(
+    summary: dict, plan: Plan, diverged: dict[str, int], failed: dict[str, int] | None = None
+) -> str:
     """The summary as Markdown: one table per metric, a row per controller set."""
     from ..analysis.paper_report import markdown_table
 
@@ -511,6 +575,9 @@ def summary_markdown(summary: dict, plan: Plan, diverged: dict[str, int]) -> str
     for label, count in diverged.items():
         if count:
             lines += [f"**{label}: {count} runs diverged** (status in metrics.parquet).", ""]
+    for label, count in (failed or {}).items():
+        if count:
+            lines += [f"**{label}: {count} runs failed** (status in metrics.parquet).", ""]
     header = ["controller set", "runs", "median", "5 %", "95 %", "mean", "std"]
     metrics = list(dict.fromkeys(m for per in summary.values() for m in per))
     for metric in metrics:
@@ -529,14 +596,14 @@ def write_summary(folder: Path, study: Study) -> Path:
 
     summary = study.summary()
     table = study.table
-    diverged = {
-        label: int((table[table["label"] == label]["status"] != OK).sum())
-        for label in study.plan.labels
-    }
+    counts = {label: status_counts(table[table["label"] == label]) for label in study.plan.labels}
+    diverged = {label: count[DIVERGED] for label, count in counts.items()}
+    failed = {label: count[FAILED] for label, count in counts.items()}
 
     def write(tmp: Path) -> None:
-        write_new(tmp / "summary.json", json_text({"diverged": diverged, "metrics": summary}))
-        write_new(tmp / "summary.md", summary_markdown(summary, study.plan, diverged))
+        record = {"diverged": diverged, "failed": failed, "metrics": summary}
+        write_new(tmp / "summary.json", json_text(record))
+        write_new(tmp / "summary.md", summary_markdown(summary, study.plan, diverged, failed))
         metrics = metric_columns(table, study.plan)
         grids = [v.name for v in study.plan.variations if v.grid is not None]
         with warnings.catch_warnings():

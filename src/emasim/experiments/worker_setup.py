@@ -5,9 +5,12 @@ there (a controller's design check, say) would reach the terminal as Python's ra
 warning, with its source path and line. :class:`OneLineWarnings` makes it the command line's
 one line, ``warning: <message>``, on the worker's stderr. Python's default filter still shows
 each distinct warning once per process. :func:`emasim.experiments.batch.dask_client` registers
-it on the LocalClusters it starts, never on a cluster it only connects to.
+it on the LocalClusters it starts, never on a cluster it only connects to, and so
+:class:`LogToFile` too, for a study: its workers' output goes to the study's log file.
 """
 
+import logging
+import os
 import sys
 import warnings
 
@@ -26,3 +29,29 @@ class OneLineWarnings(WorkerPlugin):
 
     def setup(self, worker) -> None:
         warnings.showwarning = one_line_warning
+
+
+class LogToFile(WorkerPlugin):
+    """Send everything the worker process prints (its stdout and stderr, so Python's and
+    Dask's messages and a C library's alike) to the end of the file ``path``, and each failed
+    study run's traceback (the ``emasim.experiments.study.FAILURE_LOG`` logger) with it: a
+    study's worker processes never write to the user's terminal."""
+
+    name = "emasim-log-to-file"
+
+    def __init__(self, path: str):
+        self.path = str(path)
+
+    def setup(self, worker) -> None:
+        from .study import FAILURE_LOG
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+        os.dup2(fd, 1)
+        os.dup2(fd, 2)
+        os.close(fd)
+        failures = logging.getLogger(FAILURE_LOG)
+        failures.handlers[:] = [logging.StreamHandler(sys.stderr)]
+        failures.setLevel(logging.ERROR)
+        failures.propagate = False

@@ -46,24 +46,10 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     loaded (see :func:`check_fmu_trust`); an FMU mechanism is the linkage alone.
     """
     check_fmu_trust(scenario, trust_fmu)
-    plant = scenario.plant
-    if plant.linkage is None:
-        raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
-    if scenario.load.rod_force_N:
-        raise InputError("co-simulation takes motor_torque_Nm and rudder_torque_Nm loads only")
-    if scenario.solver.mechanism_fmu is not None and (plant.rudder_shaft or plant.load_motor):
-        raise InputError(
-            "solver.mechanism_fmu: an FMU mechanism is the linkage alone; remove "
-            "plant.rudder_shaft and plant.load_motor, or use the built-in mechanism"
-        )
+    _check_cosim(scenario, communication_step_s)
     linked = scenario.setup().with_(record_signals=None)  # every column, as the run had
     ts = linked.sample_period_s
     ticks = round(communication_step_s / ts)
-    if ticks < 1 or abs(ticks * ts - communication_step_s) > 1e-9 * communication_step_s:
-        raise InputError(
-            f"solver.communication_step_s ({communication_step_s:g} s) must be a whole multiple "
-            f"of solver.sample_period_s ({ts:g} s)"
-        )
     rod_force = encode([Constant(value=0.0)])
     drive = EngineRun(
         linked.with_(
@@ -104,6 +90,36 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     result.meta["simulation_wall_s"] = time.perf_counter() - start  # drive and mechanism
     result.meta["communication_step_s"] = communication_step_s
     return result
+
+
+def check_runnable(scenario, trust_fmu: bool) -> None:
+    """Every rule a run of ``scenario`` checks, checked before anything is compiled or run: an
+    FMU needs ``trust_fmu`` (:func:`check_fmu_trust`), and a co-simulation
+    (``solver.communication_step_s``) a plant it can split. InputError names the first."""
+    check_fmu_trust(scenario, trust_fmu)
+    if scenario.solver.communication_step_s is not None:
+        _check_cosim(scenario, scenario.solver.communication_step_s)
+
+
+def _check_cosim(scenario, communication_step_s: float) -> None:
+    """The co-simulation's rules on the scenario (cheap: nothing compiled)."""
+    plant = scenario.plant
+    if plant.linkage is None:
+        raise InputError("solver.communication_step_s: co-simulation needs a plant with a linkage")
+    if scenario.load.rod_force_N:
+        raise InputError("co-simulation takes motor_torque_Nm and rudder_torque_Nm loads only")
+    if scenario.solver.mechanism_fmu is not None and (plant.rudder_shaft or plant.load_motor):
+        raise InputError(
+            "solver.mechanism_fmu: an FMU mechanism is the linkage alone; remove "
+            "plant.rudder_shaft and plant.load_motor, or use the built-in mechanism"
+        )
+    ts = scenario.solver.sample_period_s
+    ticks = round(communication_step_s / ts)
+    if ticks < 1 or abs(ticks * ts - communication_step_s) > 1e-9 * communication_step_s:
+        raise InputError(
+            f"solver.communication_step_s ({communication_step_s:g} s) must be a whole multiple "
+            f"of solver.sample_period_s ({ts:g} s)"
+        )
 
 
 def check_fmu_trust(scenario, trust_fmu: bool) -> None:
