@@ -267,3 +267,17 @@ def test_tunings_that_first_use_a_storage_at_once_are_safe(tmp_path):
         for worker in workers:
             worker.join()
         assert said == ["ok"] * 4
+
+
+def test_a_cosimulation_rule_is_refused_before_the_compile_notice(tmp_path, monkeypatch):
+    from emasim import numba_cache
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(numba_cache, "is_cold", lambda *args, **kwargs: True)
+    args = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.02", "--no-plot"]
+    result = runner.invoke(app, [*args, "--set", "solver.communication_step_s=1e-3"])
+    assert result.exit_code == 2
+    assert lines(result.stderr) == [
+        "error: solver.communication_step_s: co-simulation needs a plant with a linkage"
+    ]
+    assert list(tmp_path.iterdir()) == []
