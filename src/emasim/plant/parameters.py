@@ -26,7 +26,7 @@ from .linkage import LinkageParams
 from .load_motor import LoadMotorParams
 from .motor import torque_constant
 from .ratings import RatingsParams
-from .sensors import S_ALPHA, S_EVERY, S_PERIOD, S_SOURCE, ideal_table
+from .sensors import S_ALPHA, S_ERROR, S_EVERY, S_PERIOD, S_SOURCE, S_WAVENUMBER, ideal_table
 from .shaft import ShaftParams
 from .stops import EndStopParams
 
@@ -112,6 +112,16 @@ class SensorChannel(Strict):
         default=0.0, ge=0, le=1e3, description="Gaussian noise standard deviation"
     )
     offset: float = Field(default=0.0, ge=-1e3, le=1e3, description="constant bias")
+    accuracy_error: float = Field(
+        default=0.0,
+        ge=0,
+        le=1e3,
+        description="amplitude a of the smooth position-dependent error a sin(2 pi v / "
+        "accuracy_period), zero at v = 0 (an encoder's accuracy class), 0 = none",
+    )
+    accuracy_period: float = Field(
+        default=0.0, ge=0, le=1e3, description="period of the accuracy error, in the reading"
+    )
     gap_width: float = Field(
         default=0.0, ge=0, le=1.0, description="total play read through, 0 = none"
     )
@@ -129,6 +139,12 @@ class SensorChannel(Strict):
     filter_time_constant_s: float = Field(
         default=0.0, ge=0, le=10.0, description="tau of a derived channel's lag (0 = none)"
     )
+
+    @model_validator(mode="after")
+    def _error_has_a_period(self):
+        if self.accuracy_error > 0.0 and self.accuracy_period == 0.0:
+            raise ValueError("accuracy_error needs accuracy_period > 0 (the error's period)")
+        return self
 
 
 class SensorParams(Strict):
@@ -183,6 +199,9 @@ class SensorParams(Strict):
                 every,
             )
             table[i, S_PERIOD] = period
+            if ch.accuracy_error > 0.0:
+                table[i, S_ERROR] = ch.accuracy_error
+                table[i, S_WAVENUMBER] = 2.0 * math.pi / ch.accuracy_period
             if ch.derived:
                 table[i, S_SOURCE] = MEASUREMENT_NAMES.index(DERIVED_FROM[name])
                 tau = ch.filter_time_constant_s

@@ -2,10 +2,15 @@
 
 Each measurement channel (layout in :mod:`emasim.interface`) reads its true value v and reports
 
-    y = quantise(v + offset + noise_std * N(0, 1), resolution)
+    y = quantise(v + offset + e(v) + noise_std * N(0, 1), resolution)
+    e(v) = a sin(2 pi v / lambda)
 
 optionally through a gap of half-width b (the play operator, for a position read across
-backlash). quantise(v, q) = q * round(v / q); q = 0 means no quantisation. A channel samples
+backlash). quantise(v, q) = q * round(v / q); q = 0 means no quantisation. e(v) is a smooth,
+position-dependent accuracy error of amplitude a and period lambda (in v), zero at v = 0: the
+deviation of an encoder's reading from the true angle that its accuracy class bounds (an
+incremental encoder is referenced at the rudder's neutral, so its reading is right there). It
+is systematic, not noise: the same angle reads the same every time. A channel samples
 every n-th control tick (its own sample period n Ts) and holds its reading in between.
 
 A **derived** channel (the motor speed from the encoder's angle, the rod velocity from its
@@ -21,6 +26,8 @@ once per run, so a run is reproducible from its seed.
 The rod's displacement sensor sits on the actuator body, so it reads the rod's extension
 x_L - x_h (emasim.plant.anchorage).
 """
+
+import math
 
 import numpy as np
 
@@ -48,7 +55,9 @@ S_EVERY = 4  # samples every n-th tick
 S_SOURCE = 5  # the channel a derived channel differentiates, -1 for none
 S_PERIOD = 6  # the channel's sample period T (s)
 S_ALPHA = 7  # the filter's 1 - exp(-T / tau) (1: no filter)
-N_SENSOR_COLUMNS = 8
+S_ERROR = 8  # the accuracy error's amplitude a (0: none)
+S_WAVENUMBER = 9  # the accuracy error's 2 pi / lambda (1/unit of the channel)
+N_SENSOR_COLUMNS = 10
 
 # columns of the sensors' state (emasim.sim.core.SensorArrays.state)
 ST_GAP = 0  # the play operator's output
@@ -97,11 +106,22 @@ def read_sensor(value, resolution, noise_std, offset):
 
 
 @njit(cache=True, error_model="numpy")
+def accuracy_error(v, amplitude, wavenumber):
+    """The reading's systematic error at the true value v, e(v) = a sin(k v), k = 2 pi / lambda
+    (module docstring); 0 where a is 0."""
+    if amplitude == 0.0:
+        return 0.0
+    return amplitude * math.sin(wavenumber * v)
+
+
+@njit(cache=True, error_model="numpy")
 def _sample(i, v, table, state):
-    """Channel i's reading of v: through its play operator, then offset, noise, quantum."""
+    """Channel i's reading of v: through its play operator, then accuracy error, offset,
+    noise, quantum."""
     if table[i, S_HALF_GAP] > 0.0:
         v = play_operator(v, state[i, ST_GAP], table[i, S_HALF_GAP], 1.0)
         state[i, ST_GAP] = v
+    v += accuracy_error(v, table[i, S_ERROR], table[i, S_WAVENUMBER])
     reading = read_sensor(v, table[i, S_RESOLUTION], table[i, S_NOISE], table[i, S_OFFSET])
     state[i, ST_HELD] = reading
     return reading

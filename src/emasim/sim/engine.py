@@ -85,6 +85,7 @@ from .trace import (
     C_IQ_REF,
     C_LIMIT_FLAGS,
     C_MEASURED_POSITION,
+    C_MEASURED_RUDDER,
     C_MEASURED_SPEED,
     C_MOTOR_LOAD,
     C_OUTPUTS,
@@ -285,6 +286,7 @@ def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref
     row[C_RUDDER_LOAD] = signal_value(signals.rudder_load, t)
     row[C_MEASURED_SPEED] = meas[M_SPEED]
     row[C_MEASURED_POSITION] = meas[M_POSITION]
+    row[C_MEASURED_RUDDER] = meas[M_RUDDER]
     for j in range(trace.columns.size):
         trace.data[j, r] = row[trace.columns[j]]
 

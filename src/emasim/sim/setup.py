@@ -11,12 +11,14 @@ from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import (
     S_ALPHA,
+    S_ERROR,
     S_EVERY,
     S_HALF_GAP,
     S_NOISE,
     S_OFFSET,
     S_RESOLUTION,
     S_SOURCE,
+    S_WAVENUMBER,
     ideal_table,
     initial_state,
 )
@@ -119,9 +121,12 @@ class Setup:
                     ("noise_std", S_NOISE, 1.0),
                     ("offset", S_OFFSET, 1.0),
                     ("gap_width", S_HALF_GAP, 2.0),
+                    ("accuracy_error", S_ERROR, 1.0),
                 )
                 if row[column] != 0.0
             }
+            if row[S_ERROR] != 0.0:
+                found["accuracy_period"] = 2.0 * math.pi / float(row[S_WAVENUMBER])
             if row[S_EVERY] != 1.0:
                 found["sample_period_s"] = float(row[S_EVERY]) * self.sample_period_s
             if row[S_SOURCE] >= 0.0:

@@ -29,7 +29,8 @@ LOAD_COLUMNS = (
 )
 MEASURED_COLUMNS = (
     Quantity("measured_speed_rad_s", "rad/s", "speed sensor reading"),
-    Quantity("measured_position_m", "m", "rod position sensor reading"),
+    Quantity("measured_position_m", "m", "the position loop's reading: rod sensor, or rudder"),
+    Quantity("measured_rudder_rad", "rad", "rudder encoder reading"),
 )
 TRACE = Layout(
     (
@@ -57,3 +58,4 @@ C_ROD_LOAD = TRACE.index("rod_load_N")
 C_RUDDER_LOAD = TRACE.index("rudder_load_Nm")
 C_MEASURED_SPEED = TRACE.index("measured_speed_rad_s")
 C_MEASURED_POSITION = TRACE.index("measured_position_m")
+C_MEASURED_RUDDER = TRACE.index("measured_rudder_rad")
