@@ -4,7 +4,8 @@ experiment, the gains fixed at their nominal tuning, PID and the hybrid run on t
 The uncertainty (UNCERTAINTY, ``--vary`` specs of :mod:`.variation`): friction (Coulomb,
 stiction and viscous together) +-50 %; backlash 0.05 to 0.2 mm; every hinge clearance 0 to
 0.05 mm; the load inertia (rudder and inertia disk together) +-20 %; the load motor's standing
-preload 0 to 400 N*m (the nominal 200 N*m +-100 %); and the sensor-noise seed. All uniform.
+preload over the loader's range, 0 to its 94.5 N*m rating (the paper states no load profile);
+and the sensor-noise seed. All uniform.
 
 For each headline figure and the tuning cost, over the paired samples: the hybrid's win rate
 (the fraction of plants on which its |metric| is below PID's; a run that diverged loses), with
@@ -35,6 +36,7 @@ from ..analysis.paper_report import (
     PID_LABEL,
 )
 from ..output import RUNS_ROOT
+from ..plant.presets import LOADER_RATED_TORQUE_NM
 from .study import OK, StudySpec, read_table, run_study
 
 SCENARIOS = ("bench-step", "bench-sine")
@@ -45,7 +47,7 @@ UNCERTAINTY = (
     "plant.backlash.width_mm=uniform(0.05, 0.2)",
     "plant.linkage.hinge_clearance_mm=uniform(0, 0.05)",
     "plant.linkage.rudder_inertia_kgm2,plant.rudder_shaft.disk_inertia_kgm2=*uniform(0.8, 1.2)",
-    "plant.load_motor.preload_Nm=uniform(0, 400)",
+    f"plant.load_motor.preload_Nm=uniform(0, {LOADER_RATED_TORQUE_NM:g})",
     "seed=integers(0, 4294967295)",
 )
 COST = "tuning_cost"

@@ -18,7 +18,7 @@ Check (tests/test_load_motor.py): a torque step gives T_cmd (1 - exp(-t / tau)).
 
 import math
 
-from pydantic import Field
+from pydantic import Field, model_validator
 
 from ..config import Strict
 from ..jit import njit
@@ -69,6 +69,15 @@ class LoadMotorParams(Strict):
     preload_Nm: float = Field(
         default=0.0, ge=-1e6, le=1e6, description="T_pre: standing torque from t = 0"
     )
+
+    @model_validator(mode="after")
+    def _preload_within_rating(self):
+        if abs(self.preload_Nm) > self.max_torque_Nm:
+            raise ValueError(
+                f"preload_Nm ({self.preload_Nm:g}) must be within the load motor's rating, "
+                f"+-max_torque_Nm = +-{self.max_torque_Nm:g} N m"
+            )
+        return self
 
     @property
     def time_constant_s(self) -> float:

@@ -205,6 +205,7 @@ def sea805_ratings() -> RatingsParams:
     return RatingsParams(rated_speed_rpm=1800.0, continuous_current_A=20.0, peak_current_s=2.0)
 
 
+LOADER_RATED_TORQUE_NM = 94.5  # the LAFERT B132I load motor's rated torque (paper section 3)
 BENCH_DISK_INERTIA_KGM2 = 1.45  # ours: the inertia disk, of the 1.5 kg m^2 rudder stage
 
 
@@ -225,7 +226,11 @@ def sea805_bench(clearance_mm: float = 0.01) -> PlantParams:
     * rudder shaft: 2e4 N m/rad, a 200 N m torque sensor's shaft and couplings, between the
       rocker arm (0.05 kg m^2 of the rudder stage) and the 1.45 kg m^2 inertia disk: 18.7 Hz
       with the disk alone; 2 % of critical damping;
-    * load motor: a 0.01 kg m^2 rotor, a 200 Hz torque loop, 500 N m rated, no preload.
+    * load motor: the paper's LAFERT B132I (section 3), rated 94.5 N m: its torque is held
+      to that rating (T_max); ours: a 0.01 kg m^2 rotor and a 200 Hz torque loop. No standing
+      preload: the paper states no load profile for its bench tests, so the nominal bench
+      carries none; a preload or a hinge-moment profile is a scenario option
+      (``plant.load_motor.preload_Nm``, ``load.rudder_torque_Nm``, within the rating).
     """
     base = sea805_linkage(clearance_mm)
     linkage = base.linkage.model_copy(
@@ -252,7 +257,7 @@ def sea805_bench(clearance_mm: float = 0.01) -> PlantParams:
                 disk_inertia_kgm2=BENCH_DISK_INERTIA_KGM2,
             ),
             "load_motor": LoadMotorParams(
-                inertia_kgm2=0.01, bandwidth_Hz=200.0, max_torque_Nm=500.0
+                inertia_kgm2=0.01, bandwidth_Hz=200.0, max_torque_Nm=LOADER_RATED_TORQUE_NM
             ),
         }
     )
@@ -266,18 +271,43 @@ PRESETS = {
 }
 
 
-def bench_sensors() -> SensorParams:
-    """The paper's test-bench sensors (section 3), as quantisation and noise.
+ARCSEC = math.pi / (180.0 * 3600.0)  # rad
+RUDDER_ENCODER_LINES = 1024  # the HEIDENHAIN TTL encoder's line count (ttl_rudder_encoder)
+RUDDER_ENCODER_EDGES = 4  # TTL quadrature: every edge of both channels counts
+RUDDER_ENCODER_ACCURACY_ARCSEC = 60.0  # the paper's figure (section 3)
 
-    Rudder: HEIDENHAIN encoder, accuracy +-60 arcsec, read as uniform error (std 60"/sqrt(3)).
+
+def ttl_rudder_encoder() -> SensorChannel:
+    """The bench's rudder encoder: a HEIDENHAIN incremental rotary encoder, +-60 arcsec, TTL
+    signals (paper section 3), as the count its counter holds.
+
+    The paper gives no line count. HEIDENHAIN states the system accuracy of its incremental
+    rotary encoders with TTL signals as +-1/20 of the grating period: +-60" is a period of
+    1200", 1080 lines; we take the nearest standard line count, 1024 (+-63"). Evaluated on all
+    four edges of the two quadrature signals that is 4096 counts a revolution, a quantum of
+    316" (0.088 deg). The reading's error is the position-dependent deviation the class
+    bounds, not white noise: +-60" over each grating period (360 deg / 1024), zero at the
+    rudder's neutral, where the incremental count is referenced. The counter is read at every
+    control tick (the rudder channel's sample period is the controllers').
+    """
+    lines = RUDDER_ENCODER_LINES
+    return SensorChannel(
+        resolution=2.0 * math.pi / (RUDDER_ENCODER_EDGES * lines),
+        accuracy_error=RUDDER_ENCODER_ACCURACY_ARCSEC * ARCSEC,
+        accuracy_period=2.0 * math.pi / lines,
+    )
+
+
+def bench_sensors() -> SensorParams:
+    """The paper's test-bench sensors (section 3), as quantisation, accuracy error and noise.
+
+    Rudder: the HEIDENHAIN TTL encoder (:func:`ttl_rudder_encoder`).
     Rod position: magnetostrictive sensor, 16 bit over the 250 mm stroke (0.0015 % = 3.8 um).
     Rod force: 0.2 % of the 50 kN range, as uniform error (std 100 N/sqrt(3)).
     Motor speed and currents: the drive's own resolver and shunts (ours: 0.1 rad/s, 0.05 A noise).
     """
-    arcsec = math.pi / (180.0 * 3600.0)
-    encoder_count = 2.0 * math.pi / 2**20
     return SensorParams(
-        rudder=SensorChannel(resolution=encoder_count, noise_std=60 * arcsec / math.sqrt(3)),
+        rudder=ttl_rudder_encoder(),
         position=SensorChannel(resolution=0.250 / 2**16),
         force=SensorChannel(noise_std=100.0 / math.sqrt(3)),
         speed=SensorChannel(noise_std=0.1),
