@@ -84,6 +84,7 @@ def speed_step_result(dip, tau_r, offset=0.0, pre_offset=0.0, iq_ref=None):
         t,
         step_scenario("speed_rpm", 1000.0, T_LOAD),
         motor_speed_rad_s=RPM * y,
+        measured_speed_rad_s=RPM * y,  # an ideal speed sensor
         speed_ref_rad_s=np.full_like(t, RPM * 1000.0),
         iq_ref_A=iq_ref,
     )
@@ -354,6 +355,40 @@ def bench_step_result(linkage=False, run=10.0):
     return FakeResult(t, scenario, **columns)
 
 
+def test_bench_figures_are_on_the_encoder_reading_with_the_true_ones_beside():
+    """With the encoder's reading recorded, each bench figure is the reading's (the rate
+    differenced over RATE_WINDOW_S) and ``true_<figure>`` the true angle's: a reading that
+    sits 0.01 deg below the target (an accuracy error) and holds still in the steady window
+    has an RMS error of 0.01 deg, no vibration and no rate."""
+    result = bench_step_result(linkage=True)
+    t = result.t
+    start = r.steady_window(t)[0]
+    true_angle = result["rudder_angle_rad"] / DEG
+    reading = np.where(t >= start - r.RATE_WINDOW_S, 4.71, true_angle)  # its jump before it
+    result._columns["measured_rudder_rad"] = DEG * reading
+    out = r.bench_step_metrics(result)
+    true = r.bench_step_metrics(bench_step_result(linkage=True))
+    assert {k.removeprefix(r.TRUE_PREFIX) for k in out if k.startswith(r.TRUE_PREFIX)} == set(true)
+    assert all(out[r.TRUE_PREFIX + k] == v for k, v in true.items())
+    assert out["steady_error_rms_deg"] == pytest.approx(0.01, rel=1e-9)
+    assert out["chatter_amplitude_deg"] == 0.0
+    assert out["velocity_fluctuation_deg_s"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_differenced_rate_is_the_change_over_the_window():
+    """A ramp reads its slope; a single count of q reads q / T for the T = RATE_WINDOW_S
+    around it and 0 elsewhere."""
+    t = grid(2.0, 1e-3)
+    assert np.allclose(r.differenced_rate(t, 3.0 * t), 3.0)
+    q = 0.088
+    step = np.where(t >= 1.0, q, 0.0)
+    rate = r.differenced_rate(t, step)
+    window = r.RATE_WINDOW_S
+    assert rate.max() == pytest.approx(q / window)
+    assert np.count_nonzero(rate) == round(window / 1e-3)
+    assert rate[np.abs(t - 1.0) > window].max() == 0.0
+
+
 def test_steady_window():
     assert r.BENCH_STEADY_S == 2.0
     assert r.steady_window(grid(10.0, 0.01)) == (2.0, 10.0)
@@ -483,6 +518,24 @@ def test_run_metrics_dispatch_and_limits():
     # T * max|ref| = 2 s * 1000 rpm; the current command is constant, so no chattering price
     iae = 1000.0 * TAU * (1 - math.exp(-T_LOAD / TAU)) + 50.0 * 0.02
     assert out["tuning_cost"] == pytest.approx(iae / (SPEED_RUN * 1000.0), rel=1e-3)
+
+
+def test_tuning_cost_is_on_the_reading_and_covers_the_steady_window():
+    """J = IAE(e) / (T R) + RMS_s(e) / R + A_s(e) / R on the reading: a 2 rpm, 50 Hz ripple
+    that only the sensor reads, in the steady window before the load step (the last 20 % of
+    [0, 0.4] s, four whole periods), adds its mean |.| to the IAE, 2 / sqrt(2) rpm of RMS and
+    2 rpm of half peak-to-peak; the true speed does not enter."""
+    result = speed_step_result(dip=50.0, tau_r=0.02)
+    t = result.t
+    assert r.cost_window(result) == pytest.approx((0.32, 0.4))  # the load step's row excluded
+    ripple = np.where((t >= 0.32) & (t <= 0.4), 2.0 * np.sin(2 * np.pi * 50.0 * t), 0.0)
+    result._columns["measured_speed_rad_s"] = result["motor_speed_rad_s"] + RPM * ripple
+    result._columns["motor_speed_rad_s"] = np.zeros_like(t)  # must not be read
+    iae = 1000.0 * TAU * (1 - math.exp(-T_LOAD / TAU)) + 50.0 * 0.02 + 2.0 * (2 / math.pi) * 0.08
+    tracking, chatter = r.tuning_terms(result, MAX_CURRENT_A)
+    expected = iae / (SPEED_RUN * 1000.0) + (2.0 / math.sqrt(2) + 2.0) / 1000.0
+    assert tracking == pytest.approx(expected, rel=2e-3)
+    assert chatter == 0.0  # a constant current command
 
 
 def test_reference_kind_and_load_step_time():

@@ -59,6 +59,7 @@ DEAD_ZONE_MM = 0.01  # the output has "moved" once it is 10 um from where it sta
 BENCH_STEADY_S = 2.0  # bench experiments: steady-state statistics from this time on
 BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
+RATE_WINDOW_S = 0.1  # the bench's rudder rate: the encoder reading differenced over this
 CHATTER_WEIGHT = 2e-3  # of the tuning cost: the price of current-command chattering
 RECOVERY_FRACTION = 0.1  # load recovery: back within 10 % of the load step's dip ...
 RECOVERY_FLOOR_RPM = 1.0  # ... or within this absolute band, whichever is wider (speed) ...
@@ -78,6 +79,9 @@ ANALYSIS_COLUMNS = (
     "actuator_velocity_m_s",
     "position_ref_m",
     "rudder_angle_rad",
+    "measured_rudder_rad",
+    "measured_position_m",
+    "measured_speed_rad_s",
     "linkage_rudder_rate_rad_s",
     "limit_flags",
     "end_stop_force_N",
@@ -122,11 +126,13 @@ def reference_kind(scenario: dict) -> tuple[str, str]:
     raise ValueError("scenario has no reference")
 
 
-def rudder_traces(result) -> tuple[np.ndarray, ...]:
+def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     """Rudder angle, its reference (deg), rudder rate and reference rate (deg/s).
 
-    The reference is the scenario's rudder command itself; the rate is the rudder shaft's
-    (with the linkage) or the rod velocity through the lumped arm.
+    The reference is the scenario's rudder command itself. The true angle is the rudder's;
+    its rate the rudder shaft's (with the linkage) or the rod velocity through the lumped arm.
+    ``measured``: what the bench measures instead, the rudder encoder's reading
+    (``measured_rudder_rad``) and its differenced rate (:func:`differenced_rate`).
     """
     t = result.t
     command = encode(
@@ -136,13 +142,33 @@ def rudder_traces(result) -> tuple[np.ndarray, ...]:
         ]
     )
     reference = signal_values(command, t)
+    reference_rate = np.gradient(reference, t)
+    if measured:
+        angle = DEG_PER_RAD * result["measured_rudder_rad"]
+        return angle, reference, differenced_rate(t, angle), reference_rate
     angle = DEG_PER_RAD * result["rudder_angle_rad"]
     if result.scenario["plant"].get("linkage"):
         rate = DEG_PER_RAD * result["linkage_rudder_rate_rad_s"]
     else:
         arm = result.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
         rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / arm
-    return angle, reference, rate, np.gradient(reference, t)
+    return angle, reference, rate, reference_rate
+
+
+def differenced_rate(t: np.ndarray, reading: np.ndarray) -> np.ndarray:
+    """The rate a bench computes from an encoder reading: its change over RATE_WINDOW_S,
+    centred on each row, (y(t + T/2) - y(t - T/2)) / T (one-sided within T/2 of the ends).
+
+    An encoder of quantum q reads rates in steps of q / T: with the rudder's TTL encoder
+    (0.088 deg) and T = 0.1 s, 0.88 deg/s, finer than the paper's smallest PID rate figures
+    (1.3 deg/s on the step, 2 deg/s on the sine), which its bench resolved.
+    """
+    if t.size < 2:
+        return np.zeros_like(reading)
+    half = max(1, round(0.5 * RATE_WINDOW_S / (t[1] - t[0])))
+    rows = np.arange(t.size)
+    ahead, behind = np.minimum(rows + half, t.size - 1), np.maximum(rows - half, 0)
+    return (reading[ahead] - reading[behind]) / (t[ahead] - t[behind])
 
 
 def steady_window(t: np.ndarray) -> tuple[float, float]:
@@ -165,9 +191,17 @@ def run_metrics(result) -> dict:
 
 def tuning_cost(result, max_current_A: float) -> float:
     """The cost every controller set is tuned for (emasim.tuning), dimensionless:
-    J = IAE / (T * max|ref|) + CHATTER_WEIGHT * TV(iq*) / I_max, on the loop the reference
-    drives (speed, or rod position), TV(iq*) the total variation per second of the current
-    command (A/s) and I_max the drive's current limit (A)."""
+
+        J = IAE(e) / (T R) + RMS_s(e) / R + A_s(e) / R + CHATTER_WEIGHT * TV(iq*) / I_max
+
+    on the controlled output as the loop measures it, against its own reference: the position
+    loop's reading (``measured_position_m``: the rod sensor, the motor encoder as K theta, or the
+    rudder encoder through the rigid kinematics) against ``position_ref_m``, or the speed
+    reading against the speed command; e = reference - reading, T the duration, R the largest
+    |reference|. RMS_s and A_s (half peak-to-peak) are over the steady window the headline
+    figures judge (:func:`cost_window`), the IAE over the whole run (the transient); TV(iq*) is
+    the total variation per second of the current command (A/s) and I_max the drive's current
+    limit (A)."""
     return weighted_cost(*tuning_terms(result, max_current_A))
 
 
@@ -177,17 +211,34 @@ def weighted_cost(tracking: float, chatter: float) -> float:
 
 
 def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
-    """The two terms of :func:`tuning_cost`: tracking IAE / (T * max|ref|) (dimensionless) and
-    chattering TV(iq*) / I_max (1/s), before the weight."""
+    """The two terms of :func:`tuning_cost`, before the weight: tracking, IAE(e) / (T R) +
+    RMS_s(e) / R + A_s(e) / R (dimensionless), and chattering TV(iq*) / I_max (1/s)."""
     t = result.t
     if result.outer_loop == "position":
-        reference, output = result["position_ref_m"], result["actuator_position_m"]
+        reference, output = result["position_ref_m"], result["measured_position_m"]
     else:
-        reference, output = result["speed_ref_rad_s"], result["motor_speed_rad_s"]
-    scale = (t[-1] - t[0]) * max(float(np.max(np.abs(reference))), 1e-12)
-    tracking = m.integral_absolute_error(t, reference - output) / scale
+        reference, output = result["speed_ref_rad_s"], result["measured_speed_rad_s"]
+    scale = max(float(np.max(np.abs(reference))), 1e-12)
+    error = reference - output
+    window = cost_window(result)
+    steady = m.window_mask(t, window)
+    tracking = (
+        m.integral_absolute_error(t, error) / ((t[-1] - t[0]) * scale)
+        + m.error_stats(t, error, window).rms / scale
+        + 0.5 * float(np.ptp(error[steady])) / scale
+    )
     chatter = m.total_variation_rate(t, result["iq_ref_A"]) / max_current_A
     return tracking, chatter
+
+
+def cost_window(result) -> tuple[float, float]:
+    """The steady window of the tuning cost: the bench's (:func:`steady_window`) for a rudder
+    command, else the last STEADY_FRACTION of the run before its load step, as the step
+    metrics' steady-state error."""
+    if reference_kind(result.scenario)[0] == "rudder":
+        return steady_window(result.t)
+    t_end = _load_window(result)[1]
+    return (t_end - STEADY_FRACTION * (t_end - result.t[0]), t_end - 1e-12)
 
 
 def _row_period(t: np.ndarray) -> float:
@@ -347,9 +398,34 @@ def speed_sine_metrics(result) -> dict:
 
 
 def bench_step_metrics(result) -> dict:
-    """Rudder step on the virtual bench (tables 2-5), deg and deg/s."""
+    """Rudder step on the bench (tables 2-5), deg and deg/s: every figure on what the bench
+    measures (the encoder's reading and its differenced rate), and the same figure of the
+    true rudder angle beside it, keyed ``true_<figure>`` (:func:`with_true_figures`)."""
+    return with_true_figures(result, _rudder_step_figures)
+
+
+def bench_sine_metrics(result) -> dict:
+    """Rudder sine on the bench (tables 6-7), deg and deg/s, measured and true as
+    :func:`bench_step_metrics`."""
+    return with_true_figures(result, _rudder_sine_figures)
+
+
+TRUE_PREFIX = "true_"  # a bench figure of the true rudder angle, beside the measured one
+
+
+def with_true_figures(result, figures) -> dict:
+    """``figures(result, t, angle, reference, rate, reference_rate)`` on the measured rudder
+    traces, and under TRUE_PREFIX on the true ones; the true ones alone (unprefixed) for a
+    trace that lacks the encoder's reading (a result written before it was recorded)."""
     t = result.t
-    angle, reference, rate, reference_rate = rudder_traces(result)
+    true = figures(result, t, *rudder_traces(result))
+    if "measured_rudder_rad" not in result.columns:
+        return true
+    measured = figures(result, t, *rudder_traces(result, measured=True))
+    return measured | {TRUE_PREFIX + key: value for key, value in true.items()}
+
+
+def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> dict:
     final = reference[-1]
     steady = steady_window(t)
     error = m.error_stats(t, reference - angle, steady)
@@ -374,10 +450,7 @@ def bench_step_metrics(result) -> dict:
     return {k: float(v) for k, v in out.items()}
 
 
-def bench_sine_metrics(result) -> dict:
-    """Rudder sine on the virtual bench (tables 6-7), deg and deg/s."""
-    t = result.t
-    angle, reference, rate, reference_rate = rudder_traces(result)
+def _rudder_sine_figures(result, t, angle, reference, rate, reference_rate) -> dict:
     frequency, _ = _sine_frequency(result.scenario, "rudder_deg")
     steady = steady_window(t)
     track = m.sine_tracking(t, angle, reference, frequency, steady)
