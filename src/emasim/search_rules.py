@@ -36,6 +36,13 @@ class Budget:
     patience_per_knob: int | None = 10
     tolerance: float = 0.01
     widenings: int = 3
+    neighbours: int = 32  # points of the neighbourhood check of the optimum (0: none)
+
+    @classmethod
+    def fixed(cls, trials: int) -> "Budget":
+        """A fixed count of trials for every set: no early stop, no widening, no
+        neighbourhood check."""
+        return cls(trials=trials, patience_per_knob=None, widenings=0, neighbours=0)
 
     def cap(self, knobs: int) -> int:
         """The trials of one round for a set with ``knobs`` knobs."""

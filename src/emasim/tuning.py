@@ -55,6 +55,10 @@ LOOPS = ("position", "speed")
 HEARTBEAT_S = 1  # a running trial tells the storage it is alive this often
 HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
 GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
+NEIGHBOUR = "neighbour"  # user attribute of a neighbourhood-check point: its index
+CHECK_STRIDE = 100_000  # neighbour indices of successive checks of one study start this apart
+NEIGHBOUR_SPAN = 1.5  # ... each knob within x1.5 either way (+-50 %, in log space)
+CHECK_TOLERANCE = 0.01  # a neighbour better than the optimum by more than this: not converged
 TRACKING, CHATTER = "tracking", "chatter"  # user attributes: a trial's two cost terms
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
 
@@ -66,6 +70,21 @@ def _controllers_with(controllers, values: dict[str, float]):
         loop, field = key.split(".", 1)
         data[loop][field] = value
     return type(controllers).model_validate(data)
+
+
+def with_explicit_gains(controllers, scenario):
+    """The Controllers with each loop's gains written out (ControllerConfig.with_explicit_gains)
+    for the scenario's plant: the knobs a tuning searches."""
+    from .sim.setup import plant_facts
+
+    facts = plant_facts(scenario.plant)
+    return controllers.model_copy(
+        update={
+            loop: getattr(controllers, loop).with_explicit_gains(facts)
+            for loop in LOOPS
+            if getattr(controllers, loop) is not None
+        }
+    )
 
 
 def search_space(controllers) -> dict[str, tuple[float, float]]:
@@ -206,7 +225,8 @@ class Tuned:
     """One controller set's tuning: the tuned Controllers, the best cost, the cost of the gains
     given (None while their trial is unfinished), the Optuna study, the trials completed, why
     the last round stopped ("converged" or "budget"), the ranges widened (key -> (low, high))
-    and the knobs whose optimum still sits on a bound (key -> "lower" or "upper")."""
+    the knobs whose optimum still sits on a bound (key -> "lower" or "upper") and the check of
+    the optimum's neighbourhood (:func:`check_neighbourhood`)."""
 
     controllers: object
     best: float
@@ -216,6 +236,7 @@ class Tuned:
     stopped: str
     widened: dict[str, tuple[float, float]]
     on_bound: dict[str, str]
+    neighbourhood: dict | None = None
 
     def front(self) -> list[tuple[float, float]]:
         """The (chattering, tracking) Pareto front of the completed trials (analysis.pareto)."""
@@ -240,6 +261,8 @@ class Tuned:
             out["widened"] = {key: list(span) for key, span in self.widened.items()}
         if self.on_bound:
             out["on_bound"] = dict(self.on_bound)
+        if self.neighbourhood is not None:
+            out["neighbourhood"] = dict(self.neighbourhood)
         return out
 
 
@@ -253,6 +276,7 @@ def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
             result = simulate(scenario.setup())
     except SimulationDiverged:
         return DIVERGED_COST, math.nan, math.nan
+    result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
     tracking, chatter = tuning_terms(result, max_current)
     return weighted_cost(tracking, chatter), tracking, chatter
 
@@ -280,8 +304,87 @@ def _heartbeats(storage, trials):
 
 
 def _completed_values(study) -> list[float]:
+    """The costs of the search's completed trials, in trial order (the neighbourhood check's
+    points left out)."""
     complete = optuna.trial.TrialState.COMPLETE
-    return [t.value for t in sorted(study.trials, key=lambda t: t.number) if t.state == complete]
+    return [
+        t.value
+        for t in sorted(study.trials, key=lambda t: t.number)
+        if t.state == complete and NEIGHBOUR not in t.user_attrs
+    ]
+
+
+def neighbour_points(
+    centre: dict[str, float], controllers, count: int, seed: int
+) -> list[dict[str, float]]:
+    """``count`` points about ``centre`` ('loop.field' -> value): a Latin hypercube
+    (scipy.stats.qmc, seeded) over NEIGHBOUR_SPAN either way of each knob in log space, kept
+    strictly inside what each field's validation admits."""
+    from scipy.stats import qmc
+
+    keys = sorted(centre)
+    unit = qmc.LatinHypercube(d=len(keys), seed=seed).random(count)
+    points = []
+    for row in unit:
+        point = {}
+        for key, u in zip(keys, row, strict=True):
+            loop, field = key.split(".", 1)
+            low, high = hard_limits(getattr(controllers, loop), field)
+            value = centre[key] * NEIGHBOUR_SPAN ** (2.0 * u - 1.0)
+            # strictly inside: a limit may be exclusive (gt, lt)
+            point[key] = float(min(max(value, low * (1 + 1e-9)), high * (1 - 1e-9)))
+        points.append(point)
+    return points
+
+
+def check_neighbourhood(
+    study, controllers, count: int, seed: int, batch: int, evaluate_params
+) -> dict:
+    """Prove the optimum converged: run the cost at ``count`` :func:`neighbour_points` about
+    the best trial and record the best neighbour. Returns {"points", "best_cost_ratio" (the best
+    neighbour's cost over the optimum's: below 1 - CHECK_TOLERANCE, the search had not
+    converged, and the neighbour, now the study's best, is the tuned set), "best_point"}.
+
+    The points are trials of the study (user attribute NEIGHBOUR: check number x
+    CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after a check
+    (a larger budget) is checked again about its new optimum."""
+    searched = len(_completed_values(study))
+    checks = list(study.user_attrs.get("checks", []))
+    if not checks or checks[-1]["after"] != searched:
+        checks.append(
+            {"centre": dict(study.best_params), "cost": study.best_value, "after": searched}
+        )
+        study.set_user_attr("checks", checks)
+    first = (len(checks) - 1) * CHECK_STRIDE
+    centre, cost = checks[-1]["centre"], checks[-1]["cost"]
+    points = neighbour_points(centre, controllers, count, seed)
+    done = {t.user_attrs[NEIGHBOUR] - first for t in study.trials if NEIGHBOUR in t.user_attrs}
+    todo = [i for i in range(len(points)) if i not in done]
+    for start in range(0, len(todo), batch):
+        chunk = todo[start : start + batch]
+        for i, (value, tracking, chatter) in zip(
+            chunk, evaluate_params([points[i] for i in chunk]), strict=True
+        ):
+            study.add_trial(
+                optuna.trial.create_trial(
+                    params=points[i],
+                    distributions={
+                        k: optuna.distributions.FloatDistribution(v, v * (1 + 1e-12), log=True)
+                        for k, v in points[i].items()
+                    },
+                    value=value,
+                    user_attrs={NEIGHBOUR: first + i, TRACKING: tracking, CHATTER: chatter},
+                )
+            )
+    neighbours = [
+        t for t in study.trials if t.user_attrs.get(NEIGHBOUR, -1) >= first and t.value is not None
+    ]
+    best = min(neighbours, key=lambda t: t.value)
+    return {
+        "points": len(neighbours),
+        "best_cost_ratio": best.value / cost,
+        "best_point": {k: best.params[k] for k in sorted(best.params)},
+    }
 
 
 def tune_variant(
@@ -295,14 +398,15 @@ def tune_variant(
     client=None,
 ) -> Tuned:
     """Tune one controller set on ``scenario`` under ``budget`` (emasim.search_rules; a bare
-    int is that many trials, no early stop, no widening). ``storage`` is an Optuna storage or
+    int is that many trials: Budget.fixed). ``storage`` is an Optuna storage or
     URL (:func:`open_storage`); ``progress(done, cap)`` is told the finished trials after each
     batch (a resumed study's earlier trials included). The trials run through the study
     facility's :func:`emasim.experiments.batch.map_runs`, as many at once as ``client`` has
     worker threads (default: one at a time, in this process); the sampler is told their costs
     in trial order, so a seed and a batch size give the same search whatever the schedule."""
     if isinstance(budget, int):
-        budget = Budget(trials=budget, patience_per_knob=None, widenings=0)
+        budget = Budget.fixed(budget)
+    controllers = with_explicit_gains(controllers, scenario)
     base = search_space(controllers)
     max_current = scenario.plant.motor.max_current_A
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -330,25 +434,25 @@ def tune_variant(
     rounds, round_start = attrs.get("widenings", 0), attrs.get("round_start", 0)
     batch = trials_at_once(client)
 
-    def evaluate(trials):
+    def evaluate_params(points: list[dict]) -> list[tuple[float, float, float]]:
         candidates = [
             (
                 scenario.model_copy(
-                    update={
-                        "controllers": _controllers_with(controllers, trial.params),
-                        "compare": [],
-                    }
+                    update={"controllers": _controllers_with(controllers, params), "compare": []}
                 ),
                 max_current,
             )
-            for trial in trials
+            for params in points
         ]
-        with _heartbeats(storage, trials):
-            if client is None:
-                return [trial_cost(*job) for job in candidates]
-            from .experiments.batch import map_runs
+        if client is None:
+            return [trial_cost(*job) for job in candidates]
+        from .experiments.batch import map_runs
 
-            return map_runs(trial_cost, candidates, client)
+        return map_runs(trial_cost, candidates, client)
+
+    def evaluate(trials):
+        with _heartbeats(storage, trials):
+            return evaluate_params([trial.params for trial in trials])
 
     while True:
         cap = budget.cap(len(space)) * (rounds + 1)
@@ -371,6 +475,11 @@ def tune_variant(
     values = _completed_values(study)
     if not values:
         raise InputError(f"tune {label}: no trial completed; raise --trials")
+    check = (
+        check_neighbourhood(study, controllers, budget.neighbours, seed, batch, evaluate_params)
+        if budget.neighbours
+        else None
+    )
     given = [t.value for t in study.trials if t.value is not None and t.user_attrs.get(GIVEN)]
     return Tuned(
         _controllers_with(controllers, study.best_params),
@@ -381,6 +490,7 @@ def tune_variant(
         stopped,
         {key: span for key, span in space.items() if span != base[key]},
         sides,
+        check,
     )
 
 
@@ -442,7 +552,7 @@ def tune_scenario(
     ``report(label, tuned)`` after each set, ``progress(label, done, cap)`` after each batch.
     """
     if isinstance(budget, int):
-        budget = Budget(trials=budget, patience_per_knob=None, widenings=0)
+        budget = Budget.fixed(budget)
     tuned_raw = dict(raw)
     results = {}
     entries = list(tuned_raw["compare"]) if scenario.compare else None

@@ -17,6 +17,12 @@ bandwidth, following the cascade practice of motulator (Aalto) and Astrom & Hagg
 Controllers (1995): the speed loop places both closed-loop poles at -alpha_s on the rigid
 inertia (Kp = 2 alpha J/kt, Ki = alpha^2 J/kt); the position loop sees the speed loop as ideal,
 x' = K w, and places both poles at -alpha_p.
+
+The bandwidth is a design helper and the starting point of a tuning. A tuning searches the
+independent gains (``with_explicit_gains``): the position loop's Kp, Ki and Kd (its derivative
+filter Tf stays as given) and the speed loop's Kp and Ki, five knobs for a PID cascade, each
+over GAIN_SPAN either way of the gain it starts from (widened where the optimum sits on a
+bound, emasim.search_rules).
 """
 
 import math
@@ -29,6 +35,7 @@ from ..interface import M_POSITION, M_SPEED, O_RATE, O_VALUE, R_ACCEL, R_RATE, R
 from ..numerics import clamp
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
+GAIN_SPAN = 10.0  # a tuning searches each gain from a tenth to ten times the gain it starts at
 KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW, D_WEIGHT = range(10)
 N_PARAMS = 10
 INTEGRAL, DERIVATIVE, V_PREV, STARTED = range(4)  # V_PREV: the derivative's last input
@@ -85,16 +92,28 @@ class SpeedPI(ControllerConfig):
         default=False, description="add J/kt * dw_ref/dt to the current command"
     )
 
-    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+    def gains(self, plant: PlantFacts) -> tuple[float, float]:
+        """(Kp in A s/rad, Ki in A/rad): the fields where given, else from the bandwidth."""
         alpha = 2.0 * math.pi * self.bandwidth_Hz
         j_over_kt = plant.inertia_kgm2 / plant.torque_constant_Nm_per_A
         kp = self.kp_A_s_per_rad if self.kp_A_s_per_rad is not None else 2.0 * alpha * j_over_kt
         ki = self.ki_A_per_rad if self.ki_A_per_rad is not None else alpha**2 * j_over_kt
+        return float(kp), float(ki)
+
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        kp, ki = self.gains(plant)
+        j_over_kt = plant.inertia_kgm2 / plant.torque_constant_Nm_per_A
         kff = j_over_kt if self.acceleration_feedforward else 0.0
         return pack_pid(kp, ki, 0.0, ts, plant.max_current_A, kff, M_SPEED)
 
+    def with_explicit_gains(self, plant: PlantFacts) -> "SpeedPI":
+        kp, ki = self.gains(plant)
+        return self.model_copy(update={"kp_A_s_per_rad": kp, "ki_A_per_rad": ki})
+
     def tunable_ranges(self):
-        return {"bandwidth_Hz": (5.0, 300.0)}
+        if self.kp_A_s_per_rad is None or self.ki_A_per_rad is None:
+            return {"bandwidth_Hz": (5.0, 300.0)}
+        return around({"kp_A_s_per_rad": self.kp_A_s_per_rad, "ki_A_per_rad": self.ki_A_per_rad})
 
 
 class PositionPID(ControllerConfig):
@@ -128,11 +147,16 @@ class PositionPID(ControllerConfig):
             raise ValueError("kd must be 0 or absent for the 'pi' controller; use name = 'pid'")
         return self
 
-    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+    def gains(self) -> tuple[float, float, float]:
+        """(Kp in 1/s, Ki in 1/s^2, Kd): the fields where given, else from the bandwidth."""
         alpha = 2.0 * math.pi * self.bandwidth_Hz
         kd = 0.0 if self.name == "pi" else (0.05 if self.kd is None else self.kd)
         kp = self.kp_per_s if self.kp_per_s is not None else 2.0 * alpha * (1.0 + kd)
         ki = self.ki_per_s2 if self.ki_per_s2 is not None else alpha**2 * (1.0 + kd)
+        return kp, ki, kd
+
+    def build(self, plant: PlantFacts, ts: float) -> Compiled:
+        kp, ki, kd = self.gains()
         k = plant.ratio_m_per_rad
         kff = 1.0 / k if self.velocity_feedforward else 0.0
         return pack_pid(
@@ -147,8 +171,24 @@ class PositionPID(ControllerConfig):
             derivative_weight=1.0 if self.derivative_on == "error" else 0.0,
         )
 
+    def with_explicit_gains(self, plant: PlantFacts) -> "PositionPID":
+        kp, ki, kd = self.gains()
+        explicit = {"kp_per_s": kp, "ki_per_s2": ki}
+        return self.model_copy(update=explicit | ({"kd": kd} if self.name == "pid" else {}))
+
     def tunable_ranges(self):
-        ranges = {"bandwidth_Hz": (0.2, 20.0)}
-        if self.name == "pid":
-            ranges["kd"] = (1e-3, 1.0)
-        return ranges
+        if self.kp_per_s is None or self.ki_per_s2 is None:
+            ranges = {"bandwidth_Hz": (0.2, 20.0)}
+            if self.name == "pid":
+                ranges["kd"] = (1e-3, 1.0)
+            return ranges
+        gains = {"kp_per_s": self.kp_per_s, "ki_per_s2": self.ki_per_s2}
+        return around(gains | ({"kd": self.kd} if self.name == "pid" else {}))
+
+
+def around(gains: dict[str, float]) -> dict[str, tuple[float, float]]:
+    """Field -> the search range of an explicit gain: GAIN_SPAN either way of it (a gain set
+    to 0 is left out: a log-uniform search cannot start from it)."""
+    return {
+        field: (value / GAIN_SPAN, value * GAIN_SPAN) for field, value in gains.items() if value
+    }

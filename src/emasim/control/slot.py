@@ -122,3 +122,9 @@ class ControllerConfig(BaseModel):
         Only design knobs of the law this config selects; limits and structure stay fixed.
         """
         return {}
+
+    def with_explicit_gains(self, plant: PlantFacts) -> "ControllerConfig":
+        """This config with every gain a design rule derives written out as a field of its
+        own, so that a tuning study searches the gains themselves (emasim.tuning); the same
+        law. Itself for a config whose knobs are its gains already."""
+        return self

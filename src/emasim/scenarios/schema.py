@@ -42,6 +42,17 @@ MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
 Pair = Annotated[list[float], Field(min_length=2, max_length=2)]  # a TOML array of two numbers
 
 
+class Neighbourhood(Strict):
+    """The tuned optimum's neighbourhood check, as ``emasim tune`` records it
+    (emasim.tuning.check_neighbourhood)."""
+
+    points: int = Field(ge=0, description="points run about the optimum")
+    best_cost_ratio: float = Field(
+        ge=0, description="the best point's cost over the optimum's (below 0.99: not converged)"
+    )
+    best_point: dict[str, float] = Field(default={}, description="'loop.field' -> its value")
+
+
 class TuningSet(Strict):
     """One controller set's search, as ``emasim tune`` records it (emasim.tuning.Tuned)."""
 
@@ -59,6 +70,9 @@ class TuningSet(Strict):
     )
     front: list[Pair] = Field(
         default=[], description="(chattering, tracking) of the non-dominated trials"
+    )
+    neighbourhood: Neighbourhood | None = Field(
+        default=None, description="the check of the optimum's neighbourhood (emasim.tuning)"
     )
 
 
