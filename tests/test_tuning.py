@@ -12,9 +12,10 @@ from typer.testing import CliRunner
 from emasim import tuning
 from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
 from emasim.cli import app
-from emasim.control.pid import SpeedPI
+from emasim.control.pid import GAIN_SPAN, SpeedPI
 from emasim.experiments import batch
 from emasim.experiments.batch import dask_client, map_runs
+from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import (
     load_scenario,
     read_scenario_file,
@@ -23,8 +24,6 @@ from emasim.scenarios.loader import (
 )
 from emasim.search_rules import WIDEN_FACTOR, Budget
 from emasim.sim.engine import simulate
-from emasim.control.pid import GAIN_SPAN
-from emasim.experiments.runs import run_scenario
 from emasim.sim.setup import plant_facts
 from emasim.tuning import (
     TUNED_HEADER,
@@ -144,9 +143,10 @@ def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_pat
     # the gains given: those of the comparison's PI set, which the choice starts from, as
     # the independent gains they stand for
     given_gains = scenario.controllers.speed.with_explicit_gains(plant_facts(scenario.plant))
-    assert scenario.controllers.speed == validate_scenario(
-        read_scenario_file("speed-step")[0]
-    ).compare[0].controllers.speed
+    assert (
+        scenario.controllers.speed
+        == validate_scenario(read_scenario_file("speed-step")[0]).compare[0].controllers.speed
+    )
     assert study.trials[0].params == {
         "speed.kp_A_s_per_rad": given_gains.kp_A_s_per_rad,
         "speed.ki_A_per_rad": given_gains.ki_A_per_rad,

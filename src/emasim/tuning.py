@@ -346,8 +346,8 @@ def check_neighbourhood(
     converged, and the neighbour, now the study's best, is the tuned set), "best_point"}.
 
     The points are trials of the study (user attribute NEIGHBOUR: check number x
-    CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after a check
-    (a larger budget) is checked again about its new optimum."""
+    CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after
+    a check (a larger budget) is checked again about its new optimum."""
     searched = len(_completed_values(study))
     checks = list(study.user_attrs.get("checks", []))
     if not checks or checks[-1]["after"] != searched:
