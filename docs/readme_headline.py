@@ -46,54 +46,95 @@ def percent(x: float) -> str:
     return f"{'−' if x > 0 else '+'}{abs(100 * x):.0f} %"
 
 
-def render(headline: dict) -> str:
-    """The README's table of the headline object of tables.json."""
+INDUSTRIAL = "industrial PID"  # the further PID variant of every bench experiment
+
+
+def pair(before: float | None, after: float | None, unit: str, change: float | None) -> str:
+    """'0.056 → 0.032 deg (−43 %)'; '-' when a side is missing."""
+    if before is None or after is None:
+        return "-"
+    text = f"{number(before)} → {number(after)} {unit}"
+    return text + (f" ({percent(change)})" if change is not None else "")
+
+
+def win_rate(verdict: dict | None) -> str:
+    """'95 % [91, 98]' of a robustness verdict, '-' without one."""
+    if not verdict or not verdict.get("runs"):
+        return "-"
+    low, high = (100 * x for x in verdict["win_rate_ci95"])
+    return f"{100 * verdict['win_rate']:.0f} % [{low:.0f}, {high:.0f}]"
+
+
+def render(headline: dict, verdicts: dict | None = None) -> str:
+    """The README's table of the headline object of tables.json: the paper's figures, ours as
+    the bench measures them against both PID variants, the true angle's beside them and, with
+    a robustness study (``verdicts``), the hybrid's win rate against each variant."""
     lines = [
-        "| headline figure (abstract) | paper: PID → hybrid | ours: PID → hybrid |",
-        "|---|---|---|",
+        "| headline figure (abstract) | paper: PID → hybrid | ours, measured: PID → hybrid "
+        f"| ours, measured: {INDUSTRIAL} → hybrid | true angle: PID → hybrid "
+        f"| hybrid better than PID / {INDUSTRIAL}, share of plants [95 % interval] |",
+        "|---|---|---|---|---|---|",
     ]
     for key, words in NAMES.items():
         h = headline[key]
-        paper = f"{number(h['paper_pid'])} → {number(h['paper_hybrid'])} {h['unit']} "
-        paper += f"({percent(h['paper_reduction'])}"
+        paper = pair(h["paper_pid"], h["paper_hybrid"], h["unit"], None)
+        paper += f" ({percent(h['paper_reduction'])}"
         abstract = h["paper_abstract_reduction"]
         if round(100 * abstract) != round(100 * h["paper_reduction"]):
             paper += f"; abstract {percent(abstract)}"
-        ours = f"{number(h['ours_pid'])} → {number(h['ours_hybrid'])} {h['unit']} "
-        ours += f"({percent(h['ours_reduction'])})"
-        lines.append(f"| {words} | {paper}) | {ours} |")
-    return "\n".join(lines + ["", verdict_line(headline)] + variant_lines(headline))
+        ours = pair(h["ours_pid"], h["ours_hybrid"], h["unit"], h["ours_reduction"])
+        variant = h.get("variants", {}).get(INDUSTRIAL) or {}
+        industrial = pair(
+            variant.get("value"), h["ours_hybrid"], h["unit"], variant.get("hybrid_reduction")
+        )
+        true = pair(h.get("true_pid"), h.get("true_hybrid"), h["unit"], h.get("true_reduction"))
+        against = (verdicts or {}).get(key, {}).get("against", {})
+        rates = f"{win_rate(against.get('PID'))} / {win_rate(against.get(INDUSTRIAL))}"
+        lines.append(f"| {words} | {paper}) | {ours} | {industrial} | {true} | {rates} |")
+    return "\n".join([*lines, "", verdict_line(headline, verdicts)])
 
 
-def verdict_line(headline: dict) -> str:
-    """Which side the nominal bench's five figures take (lower magnitude is better)."""
-    losses = [words for key, words in NAMES.items() if not headline[key]["hybrid_better"]]
-    if not losses:
-        return "On the nominal bench the hybrid beats PID on all five figures."
-    wins = len(NAMES) - len(losses)
-    return (
-        f"On the nominal bench the hybrid beats PID on {wins} of the five figures; PID is "
-        f"better on: {', '.join(losses)}."
-    )
+def wins_against(headline: dict, label: str) -> list[str]:
+    """The figures on which the hybrid, as measured on the nominal bench, is below ``label``
+    ('PID' or a variant's label)."""
+    out = []
+    for key, words in NAMES.items():
+        h = headline[key]
+        if label == "PID":
+            better = h["hybrid_better"]
+        else:
+            variant = h.get("variants", {}).get(label)
+            better = variant is not None and abs(h["ours_hybrid"]) < abs(variant["value"])
+        if better:
+            out.append(words)
+    return out
 
 
-def variant_lines(headline: dict) -> list[str]:
-    """A sentence per further PID variant of ours (the paper has none): the figures of the
-    experiments that compare it, the variant's value against the hybrid's."""
-    lines = []
-    labels = dict.fromkeys(label for h in headline.values() for label in h.get("variants", {}))
-    for label in labels:
-        figures = []
-        for key, words in NAMES.items():
-            h = headline[key]
-            v = h.get("variants", {}).get(label)
-            if v:
-                figures.append(
-                    f"{words} {number(v['value'])} → {number(h['ours_hybrid'])} {h['unit']} "
-                    f"({percent(v['hybrid_reduction'])})"
-                )
-        lines += ["", f"Ours, {label} → hybrid: " + "; ".join(figures) + "."]
-    return lines
+def settled(verdicts: dict | None, label: str) -> bool:
+    """True when, on all five figures, the win rate's interval against ``label`` lies above
+    one half."""
+    if not verdicts:
+        return False
+    for key in NAMES:
+        verdict = verdicts.get(key, {}).get("against", {}).get(label)
+        if not verdict or not verdict.get("runs") or verdict["win_rate_ci95"][0] <= 0.5:
+            return False
+    return True
+
+
+def verdict_line(headline: dict, verdicts: dict | None = None) -> str:
+    """Which figures the hybrid wins on the nominal bench, as measured, against each PID
+    variant; 'all five' only where the Monte Carlo settles all five for it too."""
+    parts = []
+    for label in ("PID", INDUSTRIAL):
+        wins = wins_against(headline, label)
+        if len(wins) == len(NAMES) and settled(verdicts, label):
+            parts.append(f"{label} on all five figures, on the nominal bench and over the plants")
+        elif not wins:
+            parts.append(f"{label} on none of the five figures")
+        else:
+            parts.append(f"{label} on {len(wins)} of the five ({', '.join(wins)})")
+    return "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
 
 
 def signed(x: float) -> str:
@@ -156,7 +197,7 @@ def block_of(text: str, name: str) -> str:
 def write_readme(headline: dict, verdicts: dict) -> None:
     text = README.read_text()
     robustness = render_robustness(verdicts, headline)
-    for name, body in (("headline", render(headline)), ("robustness", robustness)):
+    for name, body in (("headline", render(headline, verdicts)), ("robustness", robustness)):
         begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
         start, stop = text.index(begin) + len(begin), text.index(end)
         text = text[:start] + "\n" + body + "\n" + text[stop:]

@@ -72,7 +72,8 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     module = module_at("docs/readme_headline.py")
     stored = json.loads(module.STORE.read_text())
     readme = (ROOT / "README.md").read_text()
-    assert module.block_of(readme, "headline") == module.render(stored)
+    robust = json.loads(module.ROBUSTNESS.read_text())
+    assert module.block_of(readme, "headline") == module.render(stored, robust)
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
@@ -81,34 +82,57 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
             ours = measured[key]["variants"][label]["value"]
             assert ours == pytest.approx(variant["value"], rel=1e-9), (key, label)
     # the README's verdict line (part of the block) is the one this reproduction measures
-    assert module.verdict_line(measured) in readme
+    assert module.verdict_line(measured, robust) in readme
 
 
-def test_the_readme_gives_the_hybrid_against_each_further_pid_variant():
+def test_the_readme_gives_the_hybrid_against_each_pid_variant_with_its_win_rates():
+    """Each row: ours as measured against PID and the industrial PID, the true angle's, and
+    the Monte Carlo's win rate against each variant."""
     module = module_at("docs/readme_headline.py")
     stored = json.loads(module.STORE.read_text())
-    for key in stored:
-        stored[key]["variants"] = {}
-    stored["sine_speed_fluctuation_reduction"]["variants"] = {
-        "PID+FF": {"value": 0.5, "hybrid_reduction": 0.25}
+    key = "sine_speed_fluctuation_reduction"
+    stored[key]["variants"] = {module.INDUSTRIAL: {"value": 0.5, "hybrid_reduction": 0.25}}
+    verdicts = {
+        key: {
+            "against": {
+                "PID": {"runs": 200, "win_rate": 0.9, "win_rate_ci95": [0.85, 0.94]},
+                module.INDUSTRIAL: {"runs": 200, "win_rate": 0.3, "win_rate_ci95": [0.24, 0.37]},
+            }
+        }
     }
-    table = module.render(stored).splitlines()
-    hybrid = module.number(stored["sine_speed_fluctuation_reduction"]["ours_hybrid"])
-    assert (
-        table[-1] == f"Ours, PID+FF → hybrid: sine speed fluctuation 0.5 → {hybrid} deg/s (−25 %)."
-    )
-    assert table[-2] == "" and len(table) == 2 + len(module.NAMES) + 4
+    table = module.render(stored, verdicts).splitlines()
+    (row,) = [line for line in table if line.startswith("| sine speed fluctuation |")]
+    hybrid = module.number(stored[key]["ours_hybrid"])
+    assert f"| 0.5 → {hybrid} deg/s (−25 %) |" in row
+    assert row.endswith("| 90 % [85, 94] / 30 % [24, 37] |")
+    assert len(table) == 2 + len(module.NAMES) + 2
 
 
-def test_the_readmes_verdict_line_names_the_figures_pid_wins():
+def test_the_readmes_verdict_line_says_all_five_only_when_the_monte_carlo_settles_them():
     module = module_at("docs/readme_headline.py")
-    items = {key: {"hybrid_better": True} for key in module.NAMES}
-    assert module.verdict_line(items).endswith("the hybrid beats PID on all five figures.")
-    items["step_speed_fluctuation_reduction"]["hybrid_better"] = False
-    assert module.verdict_line(items) == (
-        "On the nominal bench the hybrid beats PID on 4 of the five figures; PID is better on: "
-        "step speed fluctuation."
+    industrial = {"value": 1.0, "hybrid_reduction": 0.5}
+    items = {
+        key: {
+            "hybrid_better": True,
+            "ours_hybrid": 0.5,
+            "variants": {module.INDUSTRIAL: industrial},
+        }
+        for key in module.NAMES
+    }
+    sure = {"runs": 200, "win_rate": 0.9, "win_rate_ci95": [0.85, 0.94]}
+    verdicts = {key: {"against": {"PID": sure, module.INDUSTRIAL: sure}} for key in module.NAMES}
+    assert module.verdict_line(items, verdicts) == (
+        "As measured on the nominal bench, the hybrid beats PID on all five figures, on the "
+        "nominal bench and over the plants; and the industrial PID on all five figures, on the "
+        "nominal bench and over the plants."
     )
+    assert "PID on 5 of the five" in module.verdict_line(items)  # no Monte Carlo: no "all"
+    items["step_speed_fluctuation_reduction"]["hybrid_better"] = False
+    items["sine_displacement_lag_reduction"]["variants"][module.INDUSTRIAL] = {"value": 0.1}
+    against_pid, against_industrial = module.verdict_line(items, verdicts).split("; and the ")
+    assert "PID on 4 of the five (" in against_pid and "step speed" not in against_pid
+    assert against_industrial.startswith("industrial PID on 4 of the five (")
+    assert "lag" not in against_industrial
 
 
 def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):

@@ -29,6 +29,7 @@ from .report import (
     RECOVERY_FLOOR_RPM,
     RECOVERY_FRACTION,
     STEADY_FRACTION,
+    TRUE_PREFIX,
 )
 from .units import unit_of
 
@@ -103,6 +104,7 @@ HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
     ),
 }
 PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
+INDUSTRIAL_LABEL = "industrial PID"  # velocity and acceleration feed-forward
 ABLATED_TABLES = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
 
 
@@ -132,7 +134,10 @@ def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
     for paper_key, (our_key, unit) in rows.items():
         p_pid, p_hyb = paper[PID_LABEL].get(paper_key), paper[HYBRID_LABEL].get(paper_key)
         o_pid, o_hyb = ours[PID_LABEL].get(our_key), ours[HYBRID_LABEL].get(our_key)
+        true_key = TRUE_PREFIX + our_key  # the true angle's figure (the bench measures ours)
+        t_pid, t_hyb = ours[PID_LABEL].get(true_key), ours[HYBRID_LABEL].get(true_key)
         others = {label: ours[label].get(our_key) for label in variant_labels(ours)}
+        others_true = {label: ours[label].get(true_key) for label in variant_labels(ours)}
         numeric = all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in (p_pid, p_hyb)
         )
@@ -149,10 +154,17 @@ def bench_table(paper: dict, ours: dict, rows: dict) -> list[dict]:
                 "ours_hybrid": o_hyb,
                 "paper_reduction": reduction(p_pid, p_hyb) if numeric else None,
                 "ours_reduction": reduction(o_pid, o_hyb) if numeric else None,
+                "true_pid": t_pid,
+                "true_hybrid": t_hyb,
+                "true_reduction": reduction(t_pid, t_hyb) if numeric else None,
                 "variants": {
                     label: {
                         "value": value,
                         "hybrid_reduction": reduction(value, o_hyb) if numeric else None,
+                        "true_value": others_true[label],
+                        "true_hybrid_reduction": (
+                            reduction(others_true[label], t_hyb) if numeric else None
+                        ),
                     }
                     for label, value in others.items()
                 },
@@ -180,6 +192,9 @@ def headline(paper: dict, tables: dict) -> dict:
             "paper_reduction": row["paper_reduction"],
             "ours_reduction": row["ours_reduction"],
             "hybrid_better": abs(row["ours_hybrid"]) < abs(row["ours_pid"]),
+            "true_pid": row["true_pid"],  # the true rudder angle's figure, beside the measured
+            "true_hybrid": row["true_hybrid"],
+            "true_reduction": row["true_reduction"],
             "variants": row["variants"],  # the experiment's further PID sets, if any
         }
     return out
@@ -409,6 +424,9 @@ def _dict_rows_markdown(rows: list[dict]) -> str:
 
 
 def _headline_markdown(items: dict) -> str:
+    """The five figures: the paper's, ours as the bench measures them (the encoder), the true
+    rudder angle's, and the hybrid against each further PID variant."""
+    labels = list(dict.fromkeys(label for h in items.values() for label in h.get("variants", {})))
     header = [
         "figure",
         "unit",
@@ -419,6 +437,10 @@ def _headline_markdown(items: dict) -> str:
         "ours hybrid",
         "ours reduction",
         "hybrid better",
+        "true angle: PID",
+        "true angle: hybrid",
+        "true angle: reduction",
+        *(f"{text} {label}" for label in labels for text in ("ours", "reduction vs")),
     ]
     rows = [
         [
@@ -431,10 +453,48 @@ def _headline_markdown(items: dict) -> str:
             _fmt(h["ours_hybrid"]),
             _pct(h["ours_reduction"]),
             _fmt(h["hybrid_better"]),
+            _fmt(h.get("true_pid")),
+            _fmt(h.get("true_hybrid")),
+            _pct(h.get("true_reduction")),
+            *(
+                cell
+                for label in labels
+                for cell in (
+                    _fmt(h["variants"].get(label, {}).get("value")),
+                    _pct(h["variants"].get(label, {}).get("hybrid_reduction")),
+                )
+            ),
         ]
         for name, h in items.items()
     ]
     return markdown_table(header, rows)
+
+
+def _components_markdown(components: dict) -> list[str]:
+    """The hybrid part by part (emasim.experiments.components): a table per bench experiment
+    and the lines its numbers give."""
+    from ..experiments.components import component_lines, figures_of
+
+    parts = [
+        "## The hybrid part by part",
+        "Each bench experiment's tuned hybrid with one part switched off at a time, and with "
+        "its loops crossed with the PID cascade's (emasim.experiments.components); every "
+        "other gain as tuned. Figures as the bench measures them, the true angle's in "
+        "brackets.",
+    ]
+    for key, rows in components.items():
+        figures = figures_of(key)
+        header = ["controllers", *(f"{k} ({unit_of(k)})" for k in figures)]
+        body = [
+            [
+                row["component"],
+                *(f"{_fmt(row[k])} ({_fmt(row.get(TRUE_PREFIX + k))})" for k in figures),
+            ]
+            for row in rows
+        ]
+        parts += [f"### {key.replace('_', '-')}", markdown_table(header, body)]
+        parts.append("\n".join(f"- {line}" for line in component_lines(key, rows)))
+    return parts
 
 
 def _interval(low_high, scale: float = 1.0) -> str:
@@ -596,7 +656,7 @@ def write_report(
         "# emasim reproduction of Ding & Zhou (2025)",
         f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "
         "PID = position PID over speed PI (no feed-forward, the paper's conventional "
-        "baseline); industrial PID, where an experiment has it = the same with velocity "
+        "baseline); industrial PID = the same with velocity and acceleration "
         "feed-forward (the derivative on the measurement in both). All run over the same "
         "current loop on the same virtual bench.",
     ]
@@ -610,6 +670,8 @@ def write_report(
             "No robustness study of these experiments and this emasim version yet: "
             "`emasim reproduce --robustness` runs one (minutes).",
         ]
+    if tables.get("components"):
+        parts += _components_markdown(tables["components"])
     for exp in EXPERIMENTS:
         if exp.scenario not in scenarios:
             continue

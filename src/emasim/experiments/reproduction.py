@@ -1,5 +1,6 @@
 """The paper's experiments, run: every shipped paper scenario's comparison, the hinge
-clearance sweep and the ablation of the bench's elements, rendered by
+clearance sweep, the ablation of the bench's elements and the hybrid part by part
+(emasim.experiments.components), rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
 import time
@@ -24,6 +25,7 @@ from ..scenarios.loader import load_scenario
 from . import wear
 from .ablation import STAGES, ablation_runs, ablation_table
 from .batch import comparison_of, run_all
+from .components import component_runs, component_tables
 from .robustness import SCENARIOS as ROBUST
 from .robustness import UNCERTAINTY, latest, run_robustness
 
@@ -74,6 +76,7 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
         "comparisons": [(name, *v) for name, sc in chosen.items() for v in sc.variants()],
         "sweep": sweep_runs() if "cosim-step" in chosen else [],
         "ablation": ablation_runs(ablated, ablated, labels=labels),
+        "components": component_runs(chosen),
     }
     runs = [run for group in groups.values() for run in group]
     start = time.perf_counter()
@@ -89,6 +92,12 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
     tables = build_tables({name: c.metrics for name, c in comparisons.items()})
     if groups["sweep"]:
         tables["clearance_sweep"] = sweep_rows(groups["sweep"], done["sweep"])
+    if groups["components"]:
+        tables["components"] = component_tables(
+            groups["components"],
+            done["components"],
+            {name: c.metrics for name, c in comparisons.items()},
+        )
     if ablated:
         known = {name: comparisons[name].metrics for name in ablated}
         stages = ablation_table(ablated, groups["ablation"], done["ablation"], known, labels)

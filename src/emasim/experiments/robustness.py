@@ -1,5 +1,6 @@
 """The headline verdicts over the bench's plant uncertainty: a Monte Carlo study of each bench
-experiment, the gains fixed at their nominal tuning, PID and the hybrid run on the same plants.
+experiment, the gains fixed at their nominal tuning, PID, the industrial PID and the hybrid run
+on the same plants.
 
 The uncertainty (UNCERTAINTY, ``--vary`` specs of :mod:`.variation`): friction (Coulomb,
 stiction and viscous together) +-50 %; backlash 0.05 to 0.2 mm; every hinge clearance 0 to
@@ -7,8 +8,9 @@ stiction and viscous together) +-50 %; backlash 0.05 to 0.2 mm; every hinge clea
 preload over the loader's range, 0 to its 94.5 N*m rating (the paper states no load profile);
 and the sensor-noise seed. All uniform.
 
-For each headline figure and the tuning cost, over the paired samples: the hybrid's win rate
-(the fraction of plants on which its |metric| is below PID's; a run that diverged loses), with
+For each headline figure and the tuning cost, over the paired samples, against each PID
+variant (BASELINES): the hybrid's win rate (the fraction of plants on which its |metric| is
+below the baseline's; a run that diverged loses), with
 its exact 95 % (Clopper-Pearson) interval, and the median improvement
 100 * (|PID| - |hybrid|) / |PID| with a distribution-free 95 % interval (the order statistics
 that bracket the median with at least 95 % probability, binomial(n, 1/2)); and the 5 % and
@@ -33,6 +35,7 @@ from ..analysis.paper_report import (
     BENCH_STEP_ROWS,
     HEADLINE,
     HYBRID_LABEL,
+    INDUSTRIAL_LABEL,
     PID_LABEL,
 )
 from ..output import RUNS_ROOT
@@ -50,6 +53,7 @@ UNCERTAINTY = (
     f"plant.load_motor.preload_Nm=uniform(0, {LOADER_RATED_TORQUE_NM:g})",
     "seed=integers(0, 4294967295)",
 )
+BASELINES = (PID_LABEL, INDUSTRIAL_LABEL)  # the hybrid is judged against both PID variants
 COST = "tuning_cost"
 CONFIDENCE = 0.95
 SPREAD = (0.05, 0.95)  # the quantiles of the improvement over the plants that show its spread
@@ -70,7 +74,7 @@ def figures() -> dict[str, tuple[str, str]]:
 
 
 def spec_for(scenario: str, runs: int) -> StudySpec:
-    return StudySpec(scenario, vary=UNCERTAINTY, runs=runs, labels=(PID_LABEL, HYBRID_LABEL))
+    return StudySpec(scenario, vary=UNCERTAINTY, runs=runs, labels=(*BASELINES, HYBRID_LABEL))
 
 
 def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY) -> str:
@@ -93,7 +97,7 @@ def run_robustness(
 ) -> dict:
     """Run (or resume) the Monte Carlo of every bench experiment; return :func:`verdicts`.
     ``progress(done, total)`` counts the runs of all experiments together."""
-    totals = {scenario: 2 * runs for scenario in SCENARIOS}
+    totals = {scenario: (len(BASELINES) + 1) * runs for scenario in SCENARIOS}
     done = dict.fromkeys(SCENARIOS, 0)
     tables = {}
     for scenario in SCENARIOS:
@@ -128,7 +132,8 @@ def latest(root: Path = ROOT) -> dict | None:
                 table = read_table(folder)
             except (OSError, ValueError):
                 continue
-            if len(table) == 2 * int(runs) and (found is None or len(table) > len(found)):
+            complete = (len(BASELINES) + 1) * int(runs)
+            if len(table) == complete and (found is None or len(table) > len(found)):
                 found = table
         if found is None:
             return None
@@ -136,15 +141,16 @@ def latest(root: Path = ROOT) -> dict | None:
     return verdicts(tables)
 
 
-def sensitivity(table, metric: str) -> dict:
-    """The sampled parameter the improvement follows most: the varied column with the largest
-    |Spearman rank correlation| with the per-sample improvement (the seed left out)."""
+def sensitivity(table, metric: str, baseline: str = PID_LABEL) -> dict:
+    """The sampled parameter the improvement over ``baseline`` follows most: the varied column
+    with the largest |Spearman rank correlation| with the per-sample improvement (the seed
+    left out)."""
     from scipy.stats import spearmanr
 
-    samples, pid, hybrid = _by_sample(table, metric)
+    samples, pid, hybrid = _by_sample(table, metric, baseline)
     gain = improvement_pct(pid, hybrid)
     usable = np.isfinite(gain)
-    mine = table[table["label"] == PID_LABEL].set_index("sample").loc[samples]
+    mine = table[table["label"] == baseline].set_index("sample").loc[samples]
     best = {}
     for name in (v.split("=", 1)[0] for v in UNCERTAINTY):
         if name == "seed" or name not in mine or usable.sum() < 3:
@@ -155,23 +161,26 @@ def sensitivity(table, metric: str) -> dict:
     return best
 
 
-def paired(table, metric: str) -> tuple[np.ndarray, np.ndarray]:
-    """|metric| of PID and of the hybrid on each sample both ran (a diverged run: inf)."""
-    _, pid, hybrid = _by_sample(table, metric)
+def paired(table, metric: str, baseline: str = PID_LABEL) -> tuple[np.ndarray, np.ndarray]:
+    """|metric| of ``baseline`` and of the hybrid on each sample both ran (diverged: inf)."""
+    _, pid, hybrid = _by_sample(table, metric, baseline)
     return pid, hybrid
 
 
-def _by_sample(table, metric: str) -> tuple[list, np.ndarray, np.ndarray]:
-    """(the samples both controller sets ran, PID's and the hybrid's |metric| on each)."""
+def _by_sample(
+    table, metric: str, baseline: str = PID_LABEL
+) -> tuple[list, np.ndarray, np.ndarray]:
+    """(the samples both controller sets ran, ``baseline``'s and the hybrid's |metric| on
+    each)."""
     values = {}
-    for label in (PID_LABEL, HYBRID_LABEL):
+    for label in (baseline, HYBRID_LABEL):
         mine = table[table["label"] == label].set_index("sample")
         value = np.abs(mine[metric].astype(float)) if metric in mine else np.nan
         values[label] = dict(
             zip(mine.index, np.where(mine["status"] == OK, value, np.inf), strict=True)
         )
-    samples = sorted(set(values[PID_LABEL]) & set(values[HYBRID_LABEL]))
-    pid = np.array([values[PID_LABEL][s] for s in samples])
+    samples = sorted(set(values[baseline]) & set(values[HYBRID_LABEL]))
+    pid = np.array([values[baseline][s] for s in samples])
     hybrid = np.array([values[HYBRID_LABEL][s] for s in samples])
     return samples, pid, hybrid
 
@@ -226,11 +235,18 @@ def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
 
 
 def verdicts(tables: dict) -> dict:
-    """figure -> verdict (with its scenario and metric), from each experiment's study table."""
+    """figure -> verdict against PID (with its scenario and metric), from each experiment's
+    study table, and ``against``: baseline -> the verdict against each of BASELINES."""
     out = {}
     for name, (scenario, metric) in figures().items():
         if scenario in tables:
-            pid, hybrid = paired(tables[scenario], metric)
-            out[name] = {"scenario": scenario, "metric": metric, **verdict(pid, hybrid)}
-            out[name]["most_sensitive_to"] = sensitivity(tables[scenario], metric)
+            table = tables[scenario]
+            against = {}
+            for baseline in BASELINES:
+                pid, hybrid = paired(table, metric, baseline)
+                against[baseline] = verdict(pid, hybrid) | {
+                    "most_sensitive_to": sensitivity(table, metric, baseline)
+                }
+            out[name] = {"scenario": scenario, "metric": metric, **against[PID_LABEL]}
+            out[name]["against"] = against
     return out
