@@ -526,7 +526,7 @@ def study(
             "--vary",
             "-v",
             help="KEY=SPEC (repeatable): a list 0.05,0.1; linspace(a,b,n); geomspace(a,b,n); "
-            "uniform(a,b); normal(mean,std); loguniform(a,b); integers(a,b); "
+            "uniform(a,b); normal(mean,std); loguniform(a,b); integers(a,b); discrete(a,b,n); "
             "a leading * scales the scenario's value",
         ),
     ] = None,
@@ -670,10 +670,18 @@ def reproduce(
     runs: Annotated[
         int, typer.Option(min=10, max=100_000, help="--robustness runs per controller set")
     ] = 200,
+    seed: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=2**63 - 1,
+            help="the seed of the --robustness Monte Carlo's draws (each seed its own study)",
+        ),
+    ] = 0,
 ) -> None:
     """Run every paper experiment and write report.md, report.html and tables.json; the
     robustness of the headline verdicts is that of the last --robustness study of these
-    experiments and version, when one exists."""
+    experiments, --seed and version, when one exists."""
     from .analysis.paper_report import EXPERIMENTS
     from .experiments.reproduction import check_robustness
     from .experiments.reproduction import reproduce as run_all
@@ -702,6 +710,7 @@ def reproduce(
             force=force,
             with_ablation=ablation,
             robustness_runs=runs if robustness else None,
+            robustness_seed=seed,
         )
     except EmasimError as err:
         _fail(err)

@@ -10,8 +10,10 @@ KEY is a dotted scenario key (``plant.backlash.width_mm``, ``load.rudder_Nm.0.va
 * a range, also a grid: ``linspace(a, b, n)`` (n evenly spaced values from a to b) or
   ``geomspace(a, b, n)`` (n values in geometric progression from a to b);
 * a distribution, drawn afresh for each Monte Carlo run: ``uniform(a, b)``,
-  ``normal(mean, std)``, ``loguniform(a, b)`` (log-uniform on [a, b], 0 < a < b) or
-  ``integers(a, b)`` (a to b, both included).
+  ``normal(mean, std)``, ``loguniform(a, b)`` (log-uniform on [a, b], 0 < a < b),
+  ``integers(a, b)`` (a to b, both included) or ``discrete(a, b, n)`` (one of the n evenly
+  spaced values from a to b, each equally likely: a value that must sit on a grid, such as
+  a delay of whole solver steps).
 
 A SPEC that starts with ``*`` scales the scenario's own value of each key:
 ``plant.friction.coulomb_Nm=*uniform(0.5, 1.5)`` is friction +-50 %.
@@ -32,7 +34,7 @@ import numpy as np
 
 from ..errors import InputError
 
-DISTRIBUTIONS = {"uniform": 2, "normal": 2, "loguniform": 2, "integers": 2}
+DISTRIBUTIONS = {"uniform": 2, "normal": 2, "loguniform": 2, "integers": 2, "discrete": 3}
 RANGES = {"linspace": 3, "geomspace": 3}
 _CALL = re.compile(r"^(?P<name>[a-z]+)\((?P<args>.*)\)$")
 MAX_SAMPLES = 100_000
@@ -64,7 +66,9 @@ class Variation:
 
     def draw(self, rng: np.random.Generator):
         """One value of the distribution."""
-        kind, (a, b) = self.distribution
+        kind, (a, b, *n) = self.distribution
+        if kind == "discrete":
+            return float(np.linspace(a, b, int(n[0]))[rng.integers(int(n[0]))])
         if kind == "uniform":
             return float(rng.uniform(a, b))
         if kind == "normal":
@@ -163,6 +167,13 @@ def _range(kind: str, args: list[float], where: str) -> tuple[float, ...]:
 
 
 def _check_distribution(kind: str, args: list[float], where: str) -> None:
+    if kind == "discrete":
+        a, b, n = args
+        if n != int(n) or not 2 <= n <= MAX_SAMPLES or not a < b:
+            raise InputError(
+                f"{where}: discrete(a, b, n) needs a < b and a whole n from 2 to {MAX_SAMPLES}"
+            )
+        return
     a, b = args
     if kind == "normal" and not b > 0:
         raise InputError(f"{where}: normal(mean, std) needs std > 0, got {b:g}")
