@@ -23,7 +23,7 @@ from emasim.scenarios.loader import load_scenario
 def test_the_uncertainty_spans_the_stated_ranges_around_the_nominal_plant():
     jobs = plan_study(spec_for("bench-step", 40)).jobs
     nominal = load_scenario("bench-step").plant
-    assert {job.label for job in jobs} == {"PID", "hybrid"}
+    assert {job.label for job in jobs} == {"PID", "industrial PID", "hybrid"}
     for job in jobs:
         p = job.scenario.plant
         assert 0.5 <= p.friction.coulomb_Nm / nominal.friction.coulomb_Nm <= 1.5
@@ -38,7 +38,7 @@ def test_the_uncertainty_spans_the_stated_ranges_around_the_nominal_plant():
         assert p.linkage.rudder_inertia_kgm2 == pytest.approx(
             factor * nominal.linkage.rudder_inertia_kgm2
         )
-        assert 0.0 <= p.load_motor.preload_Nm <= 400.0
+        assert 0.0 <= p.load_motor.preload_Nm <= 94.5  # the loader's rating
     # the gains stay at their nominal tuning
     tuned = dict(load_scenario("bench-step").variants())
     for job in jobs:
@@ -47,7 +47,7 @@ def test_the_uncertainty_spans_the_stated_ranges_around_the_nominal_plant():
     by_sample = {}
     for job in jobs:
         by_sample.setdefault(job.sample, []).append(job.scenario.plant)
-    assert all(a == b for a, b in by_sample.values())
+    assert all(all(p == plants[0] for p in plants) for plants in by_sample.values())
 
 
 def test_the_median_interval_of_ten_is_the_second_and_ninth_values():

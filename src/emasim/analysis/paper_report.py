@@ -531,7 +531,28 @@ def robustness_lines(verdicts: dict, headline: dict | None = None) -> list[str]:
         elif low < 0.5 < high:
             line += " Not settled: the interval contains one half."
         lines.append(line)
+        sensitivity = _sensitivity_line(what, v)
+        if sensitivity:
+            lines.append(sensitivity)
     return lines
+
+
+def _sensitivity_line(what: str, v: dict) -> str:
+    """The figure's sensitivity against each baseline: the parameter that moves its win rate
+    most, with the win rate in that parameter's lower, middle and upper third."""
+    parts = []
+    for baseline, verdict in (v.get("against") or {PID_LABEL: v}).items():
+        most = verdict.get("moves_most") or {}
+        if most:
+            rates = verdict["sensitivity_thirds"][most["parameter"]]
+            shown = " / ".join("-" if r is None else f"{100 * r:.0f}" for r in rates)
+            parts.append(f"against {baseline} {most['parameter']} ({shown} %)")
+    if not parts:
+        return ""
+    return (
+        f"{what}, what moves the win rate most (the win rate in its lower / middle / upper "
+        f"third): " + "; ".join(parts) + "."
+    )
 
 
 def _robustness_markdown(verdicts: dict, uncertainty: tuple, headline: dict) -> list[str]:
@@ -548,14 +569,20 @@ def _robustness_markdown(verdicts: dict, uncertainty: tuple, headline: dict) -> 
         for name, v in verdicts.items()
         if v.get("runs")
     ]
+    from ..experiments.uncertainty import markdown as sampled
+
     return [
         "## Robustness over the bench's plant uncertainty",
-        "A Monte Carlo of each bench experiment, the gains fixed at their nominal tuning, PID "
-        "and the hybrid on the same sampled plants (emasim.experiments.robustness), every "
-        "parameter uniform: " + "; ".join(f"`{spec}`" for spec in uncertainty) + ". "
+        "A Monte Carlo of each bench experiment, the gains fixed at their nominal tuning, PID, "
+        "the industrial PID and the hybrid on the same sampled plants "
+        "(emasim.experiments.robustness), each parameter drawn uniformly (log-uniformly for a "
+        "factor of 2 either way; a `*` scales the bench's value) over its range:",
+        sampled(uncertainty),
         "Hybrid wins: the fraction of plants on which its |metric| is below PID's (a diverged "
         "run loses), with its exact (Clopper-Pearson) 95 % interval; median gain: of "
-        "100 (|PID| - |hybrid|) / |PID|, with its distribution-free 95 % interval.",
+        "100 (|PID| - |hybrid|) / |PID|, with its distribution-free 95 % interval. What moves "
+        "the win rate most: of the sampled parameters (the seed left out), the one whose lower, "
+        "middle and upper thirds of values give the most different win rates.",
         markdown_table(header, rows),
         "\n".join(f"- {line}" for line in robustness_lines(verdicts, headline)),
     ]

@@ -26,8 +26,8 @@ from . import wear
 from .ablation import STAGES, ablation_runs, ablation_table
 from .batch import comparison_of, run_all
 from .components import component_runs, component_tables
+from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
-from .robustness import UNCERTAINTY, latest, run_robustness
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
@@ -163,6 +163,7 @@ def reproduce(
     force: bool = False,
     with_ablation: bool = True,
     robustness_runs: int | None = None,
+    robustness_seed: int = DEFAULT_SEED,
 ) -> Path:
     """Run the paper's experiments (or ``only`` those) and write the report folder; with
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
@@ -170,7 +171,8 @@ def reproduce(
     of emasim.experiments.robustness with that many runs per controller set, and the wear
     study (emasim.experiments.wear): refused unless both bench experiments are chosen
     (:func:`check_robustness`); without it, the report shows the largest complete ones of
-    these experiments and version, if any.
+    these experiments and version, if any. ``robustness_seed``: the seed of the Monte
+    Carlo's draws (each seed its own study, run or shown).
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
@@ -189,10 +191,12 @@ def reproduce(
     comparisons, tables = _run_experiments(chosen, with_ablation, progress)
     if "headline" in tables:
         if robustness_runs is not None:
-            tables["robustness"] = run_robustness(robustness_runs, progress=_counted(progress))
+            tables["robustness"] = run_robustness(
+                robustness_runs, progress=_counted(progress), seed=robustness_seed
+            )
             tables["wear"] = wear.run_wear()
         else:
-            tables["robustness"], tables["wear"] = latest(), wear.latest()
+            tables["robustness"], tables["wear"] = latest(seed=robustness_seed), wear.latest()
         for key in ("robustness", "wear"):
             if not tables[key]:
                 del tables[key]

@@ -2,11 +2,12 @@
 experiment, the gains fixed at their nominal tuning, PID, the industrial PID and the hybrid run
 on the same plants.
 
-The uncertainty (UNCERTAINTY, ``--vary`` specs of :mod:`.variation`): friction (Coulomb,
-stiction and viscous together) +-50 %; backlash 0.05 to 0.2 mm; every hinge clearance 0 to
-0.05 mm; the load inertia (rudder and inertia disk together) +-20 %; the load motor's standing
-preload over the loader's range, 0 to its 94.5 N*m rating (the paper states no load profile);
-and the sensor-noise seed. All uniform.
+The uncertainty (UNCERTAINTY, ``--vary`` specs of :mod:`.variation`) is the table of
+:mod:`.uncertainty`, each range with its reason: friction, backlash, hinge clearance, load
+inertia, the standing preload over the loader's range, the screw's, anchorage's and rudder
+shaft's stiffness and damping, the joints' contact stiffness, the load motor's bandwidth, the
+computation delay, the speed filter, the motor's kt, J, R and L, the rudder encoder's accuracy
+error, and the sensor-noise seed. The draws' seed is ``seed`` (DEFAULT_SEED unless given).
 
 For each headline figure and the tuning cost, over the paired samples, against each PID
 variant (BASELINES): the hybrid's win rate (the fraction of plants on which its |metric| is
@@ -14,13 +15,15 @@ below the baseline's; a run that diverged loses), with
 its exact 95 % (Clopper-Pearson) interval, and the median improvement
 100 * (|PID| - |hybrid|) / |PID| with a distribution-free 95 % interval (the order statistics
 that bracket the median with at least 95 % probability, binomial(n, 1/2)); and the 5 % and
-95 % quantiles of the improvement, its spread over the plants; and the sampled parameter the
-improvement follows most (the largest |Spearman rank correlation|).
+95 % quantiles of the improvement, its spread over the plants; the sampled parameter the
+improvement follows most (the largest |Spearman rank correlation|); and the verdict's
+sensitivity (:func:`thirds`): the win rate in the lower, middle and upper third of each sampled
+parameter's values, and the parameter whose thirds' win rates spread most.
 
 The studies live in ``runs/robustness/<scenario>-<key>-<runs>/``, ``key`` a hash of the
-experiment's resolved scenario, the uncertainty and the emasim version: a study of the same
-experiments and version is found again, resumed when interrupted, and shown by a plain
-``emasim reproduce``.
+experiment's resolved scenario, the uncertainty, the draws' seed and the emasim version: a
+study of the same experiments, seed and version is found again, resumed when interrupted, and
+shown by a plain ``emasim reproduce`` (of that ``--seed``).
 """
 
 import hashlib
@@ -39,20 +42,12 @@ from ..analysis.paper_report import (
     PID_LABEL,
 )
 from ..output import RUNS_ROOT
-from ..plant.presets import LOADER_RATED_TORQUE_NM
 from .study import OK, StudySpec, read_table, run_study
+from .uncertainty import COLUMNS, SEED, UNCERTAINTY
 
 SCENARIOS = ("bench-step", "bench-sine")
 DEFAULT_RUNS = 200
-UNCERTAINTY = (
-    "plant.friction.coulomb_Nm,plant.friction.static_Nm,plant.friction.viscous_Nms_per_rad"
-    "=*uniform(0.5, 1.5)",
-    "plant.backlash.width_mm=uniform(0.05, 0.2)",
-    "plant.linkage.hinge_clearance_mm=uniform(0, 0.05)",
-    "plant.linkage.rudder_inertia_kgm2,plant.rudder_shaft.disk_inertia_kgm2=*uniform(0.8, 1.2)",
-    f"plant.load_motor.preload_Nm=uniform(0, {LOADER_RATED_TORQUE_NM:g})",
-    "seed=integers(0, 4294967295)",
-)
+DEFAULT_SEED = 0  # the seed of the draws (StudySpec.seed) unless --seed gives another
 BASELINES = (PID_LABEL, INDUSTRIAL_LABEL)  # the hybrid is judged against both PID variants
 COST = "tuning_cost"
 CONFIDENCE = 0.95
@@ -73,30 +68,38 @@ def figures() -> dict[str, tuple[str, str]]:
     return out
 
 
-def spec_for(scenario: str, runs: int) -> StudySpec:
-    return StudySpec(scenario, vary=UNCERTAINTY, runs=runs, labels=(*BASELINES, HYBRID_LABEL))
+def spec_for(scenario: str, runs: int, seed: int = DEFAULT_SEED) -> StudySpec:
+    return StudySpec(
+        scenario, vary=UNCERTAINTY, runs=runs, seed=seed, labels=(*BASELINES, HYBRID_LABEL)
+    )
 
 
-def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY) -> str:
-    """12 hex digits of the experiment's resolved scenario, what a study varies (``specs``)
-    and the emasim version."""
+def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY, seed: int = DEFAULT_SEED) -> str:
+    """12 hex digits of the experiment's resolved scenario, what a study varies (``specs``),
+    the draws' ``seed`` and the emasim version."""
     from .. import __version__
     from ..scenarios.loader import load_scenario
 
     resolved = load_scenario(scenario).model_dump(mode="json")
-    text = json.dumps([resolved, specs, __version__], sort_keys=True)
+    text = json.dumps([resolved, specs, seed, __version__], sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
-def study_folder(scenario: str, runs: int, root: Path = ROOT) -> Path:
-    return root / f"{scenario}-{study_key(scenario)}-{runs}"
+def study_folder(scenario: str, runs: int, root: Path = ROOT, seed: int = DEFAULT_SEED) -> Path:
+    return root / f"{scenario}-{study_key(scenario, seed=seed)}-{runs}"
 
 
 def run_robustness(
-    runs: int = DEFAULT_RUNS, root: Path = ROOT, progress=None, client=None, scheduler=None
+    runs: int = DEFAULT_RUNS,
+    root: Path = ROOT,
+    progress=None,
+    client=None,
+    scheduler=None,
+    seed: int = DEFAULT_SEED,
 ) -> dict:
-    """Run (or resume) the Monte Carlo of every bench experiment; return :func:`verdicts`.
-    ``progress(done, total)`` counts the runs of all experiments together."""
+    """Run (or resume) the Monte Carlo of every bench experiment, its draws from ``seed``;
+    return :func:`verdicts`. ``progress(done, total)`` counts the runs of all experiments
+    together."""
     totals = {scenario: (len(BASELINES) + 1) * runs for scenario in SCENARIOS}
     done = dict.fromkeys(SCENARIOS, 0)
     tables = {}
@@ -108,8 +111,8 @@ def run_robustness(
                 progress(sum(done.values()), sum(totals.values()))
 
         study = run_study(
-            spec_for(scenario, runs),
-            study_folder(scenario, runs, root),
+            spec_for(scenario, runs, seed),
+            study_folder(scenario, runs, root, seed),
             progress=told,
             client=client,
             scheduler=scheduler,
@@ -118,13 +121,13 @@ def run_robustness(
     return verdicts(tables)
 
 
-def latest(root: Path = ROOT) -> dict | None:
-    """The verdicts of the largest complete robustness study of today's experiments and
-    version, or None when there is none."""
+def latest(root: Path = ROOT, seed: int = DEFAULT_SEED) -> dict | None:
+    """The verdicts of the largest complete robustness study of today's experiments, draws'
+    ``seed`` and version, or None when there is none."""
     tables = {}
     for scenario in SCENARIOS:
         found = None
-        for folder in root.glob(f"{scenario}-{study_key(scenario)}-*"):
+        for folder in root.glob(f"{scenario}-{study_key(scenario, seed=seed)}-*"):
             runs = folder.name.rsplit("-", 1)[-1]
             if not runs.isdigit():
                 continue
@@ -152,13 +155,44 @@ def sensitivity(table, metric: str, baseline: str = PID_LABEL) -> dict:
     usable = np.isfinite(gain)
     mine = table[table["label"] == baseline].set_index("sample").loc[samples]
     best = {}
-    for name in (v.split("=", 1)[0] for v in UNCERTAINTY):
-        if name == "seed" or name not in mine or usable.sum() < 3:
+    for name in COLUMNS:
+        if name == SEED or name not in mine or usable.sum() < 3:
             continue
         rho = float(spearmanr(mine[name].to_numpy()[usable], gain[usable]).statistic)
         if math.isfinite(rho) and abs(rho) > abs(best.get("spearman", 0.0)):
             best = {"parameter": name, "spearman": rho}
     return best
+
+
+THIRDS = (1.0 / 3.0, 2.0 / 3.0)  # the quantiles that split a parameter's values in thirds
+
+
+def thirds(table, metric: str, baseline: str = PID_LABEL) -> dict:
+    """The verdict's sensitivity: ``sensitivity_thirds``, parameter name -> the hybrid's win
+    rate against ``baseline`` on the samples in the lower, middle and upper third of that
+    parameter's sampled values (split at their 1/3 and 2/3 quantiles, a value on a split in
+    the lower third; None for a third with no sample), for each varied column of the table
+    but the seed; and ``moves_most``: the parameter whose thirds' win rates spread most
+    (``spread``, the largest rate less the smallest; the first in the table's order on a
+    tie), empty when none has two thirds."""
+    samples, pid, hybrid = _by_sample(table, metric, baseline)
+    keep = _defined(pid, hybrid)
+    won = (hybrid < pid)[keep]
+    mine = table[table["label"] == baseline].set_index("sample").loc[samples]
+    rates, most = {}, {}
+    for column, name in COLUMNS.items():
+        if column == SEED or column not in mine or not keep.any():
+            continue
+        values = mine[column].to_numpy(dtype=float)[keep]
+        part = np.searchsorted(np.quantile(values, THIRDS), values, side="left")
+        rates[name] = [
+            float(won[part == k].mean()) if (part == k).any() else None for k in range(3)
+        ]
+        found = [r for r in rates[name] if r is not None]
+        spread = max(found) - min(found)
+        if len(found) > 1 and spread > most.get("spread", -1.0):
+            most = {"parameter": name, "spread": spread}
+    return {"sensitivity_thirds": rates, "moves_most": most}
 
 
 def paired(table, metric: str, baseline: str = PID_LABEL) -> tuple[np.ndarray, np.ndarray]:
@@ -183,6 +217,11 @@ def _by_sample(
     pid = np.array([values[baseline][s] for s in samples])
     hybrid = np.array([values[HYBRID_LABEL][s] for s in samples])
     return samples, pid, hybrid
+
+
+def _defined(pid: np.ndarray, hybrid: np.ndarray) -> np.ndarray:
+    """The samples a verdict counts: not both diverged, neither metric missing."""
+    return ~(np.isinf(pid) & np.isinf(hybrid)) & ~(np.isnan(pid) | np.isnan(hybrid))
 
 
 def improvement_pct(pid: np.ndarray, hybrid: np.ndarray) -> np.ndarray:
@@ -212,7 +251,7 @@ def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
     the improvement's 5 % and 95 % quantiles."""
     from scipy.stats import binomtest
 
-    defined = ~(np.isinf(pid) & np.isinf(hybrid)) & ~(np.isnan(pid) | np.isnan(hybrid))
+    defined = _defined(pid, hybrid)
     pid, hybrid = pid[defined], hybrid[defined]
     n = int(pid.size)
     if n == 0:
@@ -236,7 +275,8 @@ def verdict(pid: np.ndarray, hybrid: np.ndarray) -> dict:
 
 def verdicts(tables: dict) -> dict:
     """figure -> verdict against PID (with its scenario and metric), from each experiment's
-    study table, and ``against``: baseline -> the verdict against each of BASELINES."""
+    study table, and ``against``: baseline -> the verdict against each of BASELINES, each with
+    its sensitivity (:func:`sensitivity`, :func:`thirds`)."""
     out = {}
     for name, (scenario, metric) in figures().items():
         if scenario in tables:
@@ -244,9 +284,11 @@ def verdicts(tables: dict) -> dict:
             against = {}
             for baseline in BASELINES:
                 pid, hybrid = paired(table, metric, baseline)
-                against[baseline] = verdict(pid, hybrid) | {
-                    "most_sensitive_to": sensitivity(table, metric, baseline)
-                }
+                against[baseline] = (
+                    verdict(pid, hybrid)
+                    | {"most_sensitive_to": sensitivity(table, metric, baseline)}
+                    | thirds(table, metric, baseline)
+                )
             out[name] = {"scenario": scenario, "metric": metric, **against[PID_LABEL]}
             out[name]["against"] = against
     return out
