@@ -45,7 +45,7 @@ from pathlib import Path
 import optuna
 
 from .analysis.pareto import pareto_front, thinned
-from .analysis.report import tuning_terms, weighted_cost
+from .analysis.report import COST_FORMULA, tuning_terms, weighted_cost
 from .errors import InputError, SimulationDiverged
 from .search_rules import Budget, bound_side, converged, hard_limits, widened
 from .sim.engine import simulate
@@ -58,7 +58,6 @@ GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own g
 NEIGHBOUR = "neighbour"  # user attribute of a neighbourhood-check point: its index
 CHECK_STRIDE = 100_000  # neighbour indices of successive checks of one study start this apart
 NEIGHBOUR_SPAN = 1.5  # ... each knob within x1.5 either way (+-50 %, in log space)
-CHECK_TOLERANCE = 0.01  # a neighbour better than the optimum by more than this: not converged
 TRACKING, CHATTER = "tracking", "chatter"  # user attributes: a trial's two cost terms
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
 
@@ -594,7 +593,7 @@ def tune_scenario(
         "budget": budget.describe(),
         "seed": seed,
         "batch": trials_at_once(client),
-        "cost": "IAE/(T*max|ref|) + 2e-3 * TV(iq*)/I_max (emasim.analysis.report.tuning_cost)",
+        "cost": COST_FORMULA,
         "sets": {label: result.record() for label, result in results.items()},
     }
     return tuned_raw, results

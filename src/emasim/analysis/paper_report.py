@@ -20,6 +20,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..output import json_text, write_new
+from ..search_rules import CHECK_TOLERANCE
 from .pareto import equal_chatter_table
 from .report import (
     BENCH_SETTLING_BAND,
@@ -640,7 +641,8 @@ def pareto_markdown(tuning: dict | None) -> list[str]:
 def tuning_sentence(tuning: dict | None) -> str:
     """How an experiment's gains were obtained, from its scenario's ``[tuning]`` record: the
     rule, and per controller set the trials it used, why it stopped, the ranges widened and
-    any optimum still on a bound (a record of an older emasim gives one trial count)."""
+    any optimum still on a bound, and the check of its neighbourhood (a record of an older
+    emasim gives one trial count)."""
     if not tuning:
         return "the scenario's defaults (not tuned)."
     if "sets" not in tuning:
@@ -659,6 +661,14 @@ def tuning_sentence(tuning: dict | None) -> str:
             f"; **optimum on the {side} bound of {key}**"
             for key, side in record.get("on_bound", {}).items()
         )
+        check = record.get("neighbourhood")
+        if check:
+            ratio = check["best_cost_ratio"]
+            text += (
+                f"; of {check['points']} points within x1.5 of each knob the best costs "
+                f"{ratio:.3f} of the optimum"
+                + (" (converged)" if ratio >= 1 - CHECK_TOLERANCE else ", **not converged**")
+            )
         sets.append(text + ")")
     batch = f"; {tuning['batch']} trials at a time" if "batch" in tuning else ""
     return (

@@ -61,6 +61,10 @@ BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
 RATE_WINDOW_S = 0.1  # the bench's rudder rate: the encoder reading differenced over this
 CHATTER_WEIGHT = 2e-3  # of the tuning cost: the price of current-command chattering
+COST_FORMULA = (  # the tuning cost in words, for the tuned file's record and the report
+    f"IAE(e)/(T*R) + RMS_s(e)/R + A_s(e)/R + {CHATTER_WEIGHT:g} * TV(iq*)/I_max, e = the "
+    "reference - the loop's reading, s = the steady window (emasim.analysis.report.tuning_cost)"
+)
 RECOVERY_FRACTION = 0.1  # load recovery: back within 10 % of the load step's dip ...
 RECOVERY_FLOOR_RPM = 1.0  # ... or within this absolute band, whichever is wider (speed) ...
 RECOVERY_FLOOR_MM = 0.01  # ... (rod position: 10 um, the DEAD_ZONE_MM resolution)
