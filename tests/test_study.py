@@ -184,18 +184,18 @@ def test_zipped_values_scale_each_key_by_its_own_factor():
 
 def test_a_number_for_a_list_sets_every_element():
     spec = StudySpec("bench-step", vary=("plant.linkage.hinge_clearance_mm=0.02",))
-    (job, _) = plan_study(spec).jobs
-    assert list(job.scenario.plant.linkage.hinge_clearance_mm) == [0.02] * 4
+    for job in plan_study(spec).jobs:  # one per controller set
+        assert list(job.scenario.plant.linkage.hinge_clearance_mm) == [0.02] * 4
 
 
 def test_controller_keys_vary_each_controller_set():
     spec = StudySpec(
-        "bench-step", vary=("controllers.position.bandwidth_Hz=*0.5,1",), labels=("PID",)
+        "bench-step", vary=("controllers.position.kp_per_s=*0.5,1",), labels=("PID",)
     )
     plan = plan_study(spec)
     tuned = dict(load_scenario("bench-step").variants())["PID"].controllers.position
-    bandwidths = [job.scenario.controllers.position.bandwidth_Hz for job in plan.jobs]
-    assert bandwidths == pytest.approx([0.5 * tuned.bandwidth_Hz, tuned.bandwidth_Hz])
+    gains = [job.scenario.controllers.position.kp_per_s for job in plan.jobs]
+    assert gains == pytest.approx([0.5 * tuned.kp_per_s, tuned.kp_per_s])
 
 
 @pytest.mark.parametrize(
