@@ -11,7 +11,8 @@ The stages, each adding to the one before (:data:`STAGES`):
 5. **digital drive**: the one-sample computation delay, the encoder-differenced speed and the
    sensors' own rates (the bench-digital sensors), and the drive's rated limits with the
    rated speed as its speed limit;
-6. **load motor**: the bench's load motor, its inertia, torque loop and standing preload.
+6. **load motor**: the bench's load motor, its inertia and torque loop (and a standing
+   preload, where the scenario gives one).
 
 A stage is the scenario with the later stages' elements taken out (:func:`stage_scenarios`),
 so the last stage is the bench scenario itself and the first is the idealised bench on the
@@ -28,7 +29,7 @@ STAGES = (
     ("rudder feedback", "+ the position loop on the rudder encoder"),
     ("compliance", "+ screw stiffness, anchorage, rudder-shaft torsion"),
     ("digital drive", "+ one-sample delay, encoder speed, sensor rates, rated limits"),
-    ("load motor", "+ the load motor: inertia, torque loop, standing preload"),
+    ("load motor", "+ the load motor: inertia, torque loop, the scenario's preload if any"),
 )
 
 
