@@ -38,7 +38,7 @@ def toml_block(starting: str) -> str:
 def test_the_scenario_example_is_valid_and_runs():
     example = toml_block("name = ")
     scenario = validate_scenario(tomllib.loads(example))
-    assert scenario.sensors.rudder.noise_std > 0  # "bench" sensors were picked up
+    assert scenario.sensors.rudder.accuracy_error > 0  # "bench" sensors were picked up
     assert scenario.plant.backlash.width_mm == 0.2
     assert scenario.reference.loop == "position"
 
@@ -51,7 +51,7 @@ def test_the_realistic_bench_options_are_valid_on_a_bench_scenario():
     scenario = validate_scenario(raw)
     assert scenario.loop.position_feedback == "rudder"
     assert scenario.loop.computation_delay_s == 1e-4
-    assert scenario.sensors.speed.derived and scenario.plant.load_motor.preload_Nm == 200.0
+    assert scenario.sensors.speed.derived and scenario.plant.load_motor.preload_Nm == 20.0
 
 
 def test_the_python_examples_run(tmp_path, monkeypatch):

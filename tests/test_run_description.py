@@ -3,6 +3,10 @@
 Analysis reads this, never NaN columns; it survives a save and a load.
 """
 
+import math
+
+import pytest
+
 from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.result import Result
@@ -15,7 +19,8 @@ def test_a_position_run_describes_its_cascade_elements_sensors_and_units(tmp_pat
     assert run.outer_loop == "position" and result.outer_loop == "position"
     assert run.loops == {"position": "rbf-smc", "speed": "st-gpio", "current": "pi"}
     assert {"linkage", "compliance", "anchorage", "rudder_shaft", "load_motor"} <= set(run.elements)
-    assert run.sensors["rudder"]["resolution"] > 0 and run.sensors["rudder"]["noise_std"] > 0
+    assert run.sensors["rudder"]["resolution"] > 0 and run.sensors["rudder"]["accuracy_error"] > 0
+    assert run.sensors["rudder"]["accuracy_period"] == pytest.approx(2 * math.pi / 1024)
     assert set(run.sensors) == {"rudder", "position", "force", "angle", "speed", "id", "iq"}
     assert run.sensors["speed"]["derived_from"] == "angle"  # the bench-digital sensors
     assert run.sensors["position"]["sample_period_s"] == 1e-3

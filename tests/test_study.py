@@ -189,9 +189,7 @@ def test_a_number_for_a_list_sets_every_element():
 
 
 def test_controller_keys_vary_each_controller_set():
-    spec = StudySpec(
-        "bench-step", vary=("controllers.position.kp_per_s=*0.5,1",), labels=("PID",)
-    )
+    spec = StudySpec("bench-step", vary=("controllers.position.kp_per_s=*0.5,1",), labels=("PID",))
     plan = plan_study(spec)
     tuned = dict(load_scenario("bench-step").variants())["PID"].controllers.position
     gains = [job.scenario.controllers.position.kp_per_s for job in plan.jobs]

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from emasim import tuning
 from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
 from emasim.cli import app
-from emasim.control.pid import GAIN_SPAN, SpeedPI
+from emasim.control.pid import GAIN_SPAN, PositionPID, SpeedPI
 from emasim.experiments import batch
 from emasim.experiments.batch import dask_client, map_runs
 from emasim.experiments.runs import run_scenario
@@ -70,7 +70,11 @@ def test_cost_is_tracking_error_plus_a_price_on_chattering():
 def test_a_pid_cascade_is_tuned_as_five_independent_gains_from_its_bandwidth_design():
     """The PID cascade's knobs are position Kp, Ki, Kd and speed Kp, Ki, each searched over
     GAIN_SPAN either way of the gains the bandwidth rule gives (its starting point)."""
-    scenario = load_scenario("bench-step", label="PID")
+    tuned = load_scenario("bench-step", label="PID")
+    designed = tuned.controllers.model_copy(  # a cascade designed by its bandwidths alone
+        update={"speed": SpeedPI(bandwidth_Hz=15.0), "position": PositionPID(bandwidth_Hz=1.5)}
+    )
+    scenario = tuned.model_copy(update={"controllers": designed})
     explicit = with_explicit_gains(scenario.controllers, scenario)
     space = search_space(explicit)
     assert sorted(space) == [
@@ -84,7 +88,7 @@ def test_a_pid_cascade_is_tuned_as_five_independent_gains_from_its_bandwidth_des
     speed, position = scenario.controllers.speed, scenario.controllers.position
     alpha_s = 2 * np.pi * speed.bandwidth_Hz
     j_over_kt = facts.inertia_kgm2 / facts.torque_constant_Nm_per_A
-    kd = position.kd if position.kd is not None else 0.05
+    kd = 0.05  # the PID's default derivative gain
     alpha_p = 2 * np.pi * position.bandwidth_Hz
     starts = {
         "speed.kp_A_s_per_rad": 2 * alpha_s * j_over_kt,

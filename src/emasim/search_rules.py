@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 BOUND_MARGIN = 0.02  # an optimum this close to a bound, as a fraction of the log range, is on it
 WIDEN_FACTOR = 4.0  # a bound the optimum sits on moves out by this factor
-CHECK_TOLERANCE = 0.01  # a neighbour better than the optimum by more than this: not converged
 
 
 @dataclass(frozen=True)

@@ -340,9 +340,10 @@ def check_neighbourhood(
     study, controllers, count: int, seed: int, batch: int, evaluate_params
 ) -> dict:
     """Prove the optimum converged: run the cost at ``count`` :func:`neighbour_points` about
-    the best trial and record the best neighbour. Returns {"points", "best_cost_ratio" (the best
-    neighbour's cost over the optimum's: below 1 - CHECK_TOLERANCE, the search had not
-    converged, and the neighbour, now the study's best, is the tuned set), "best_point"}.
+    the best trial and record the best neighbour. Returns {"points", "best_cost_ratio" (the
+    best neighbour's cost over the optimum's: below 1 - analysis.report.CHECK_TOLERANCE, the
+    search had not converged, and the neighbour, now the study's best, is the tuned set),
+    "best_point"}.
 
     The points are trials of the study (user attribute NEIGHBOUR: check number x
     CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after

@@ -20,11 +20,11 @@ from pathlib import Path
 
 from .. import __version__
 from ..output import json_text, write_new
-from ..search_rules import CHECK_TOLERANCE
 from .pareto import equal_chatter_table
 from .report import (
     BENCH_SETTLING_BAND,
     BENCH_STEADY_S,
+    CHECK_TOLERANCE,
     DEAD_ZONE_MM,
     RECOVERY_FLOOR_MM,
     RECOVERY_FLOOR_RPM,
@@ -474,7 +474,7 @@ def _headline_markdown(items: dict) -> str:
 def _components_markdown(components: dict) -> list[str]:
     """The hybrid part by part (emasim.experiments.components): a table per bench experiment
     and the lines its numbers give."""
-    from ..experiments.components import component_lines, figures_of
+    from .components import component_lines, figures_of
 
     parts = [
         "## The hybrid part by part",
@@ -556,7 +556,7 @@ def _sensitivity_line(what: str, v: dict) -> str:
     )
 
 
-def _robustness_markdown(verdicts: dict, uncertainty: tuple, headline: dict) -> list[str]:
+def _robustness_markdown(verdicts: dict, uncertainty: str, headline: dict) -> list[str]:
     header = ["figure", "experiment", "runs", "hybrid wins", "95 % interval", "median gain"]
     rows = [
         [
@@ -570,15 +570,13 @@ def _robustness_markdown(verdicts: dict, uncertainty: tuple, headline: dict) -> 
         for name, v in verdicts.items()
         if v.get("runs")
     ]
-    from ..experiments.uncertainty import markdown as sampled
-
     return [
         "## Robustness over the bench's plant uncertainty",
         "A Monte Carlo of each bench experiment, the gains fixed at their nominal tuning, PID, "
         "the industrial PID and the hybrid on the same sampled plants "
         "(emasim.experiments.robustness), each parameter drawn uniformly (log-uniformly for a "
         "factor of 2 either way; a `*` scales the bench's value) over its range:",
-        sampled(uncertainty),
+        uncertainty,
         "Hybrid wins: the fraction of plants on which its |metric| is below PID's (a diverged "
         "run loses), with its exact (Clopper-Pearson) 95 % interval; median gain: of "
         "100 (|PID| - |hybrid|) / |PID|, with its distribution-free 95 % interval. What moves "
@@ -684,11 +682,12 @@ def write_report(
     figures: dict,
     notes: str,
     stages: tuple = (),
-    uncertainty: tuple = (),
+    uncertainty: str = "",
 ) -> None:
     """report.md, report.html and tables.json into ``folder``; ``stages`` names and describes
-    the ablation's stages, when ``tables`` has an ablation; ``uncertainty`` the --vary specs
-    of the robustness study, when ``tables`` has its verdicts (``robustness``)."""
+    the ablation's stages, when ``tables`` has an ablation; ``uncertainty`` the table
+    (Markdown) of the robustness study's --vary specs, when ``tables`` has its verdicts
+    (``robustness``)."""
     parts = [
         "# emasim reproduction of Ding & Zhou (2025)",
         f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "

@@ -61,6 +61,7 @@ BENCH_SETTLING_BAND = 0.05
 REVERSE_DEG = 0.01
 RATE_WINDOW_S = 0.1  # the bench's rudder rate: the encoder reading differenced over this
 CHATTER_WEIGHT = 2e-3  # of the tuning cost: the price of current-command chattering
+CHECK_TOLERANCE = 0.01  # a tuned optimum with a neighbour better by more than this: not converged
 COST_FORMULA = (  # the tuning cost in words, for the tuned file's record and the report
     f"IAE(e)/(T*R) + RMS_s(e)/R + A_s(e)/R + {CHATTER_WEIGHT:g} * TV(iq*)/I_max, e = the "
     "reference - the loop's reading, s = the steady window (emasim.analysis.report.tuning_cost)"

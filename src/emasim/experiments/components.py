@@ -1,5 +1,5 @@
-"""The hybrid proven part by part: its headline figures with each of its parts switched off,
-and with its loops crossed with the PID cascade's, on each bench experiment.
+"""The hybrid proven part by part, its runs: its headline figures with each of its parts
+switched off, and with its loops crossed with the PID cascade's, on each bench experiment.
 
 The tuned hybrid is the RBF-network sliding-mode position law (emasim.control.rbf) over the
 super-twisting speed law with its GPIO observer (emasim.control.super_twisting). Each
@@ -12,45 +12,36 @@ component run changes one thing of the tuned set, everything else as tuned:
 * the hybrid's position law over the PID cascade's speed loop, and the PID's position law over
   the hybrid's speed loop (both as tuned).
 
-:func:`component_lines` reads the numbers: a part whose switching off moves no headline
-figure by INERT or more is inert, and for each figure the share of the hybrid's lead over PID
-that each crossed cascade keeps says which loop carries it.
+emasim.analysis.components reads the table (component_lines).
 """
 
 from typing import TYPE_CHECKING
 
-from ..analysis.paper_report import (
-    BENCH_SINE_ROWS,
-    BENCH_STEP_ROWS,
-    HEADLINE,
-    HYBRID_LABEL,
-    PID_LABEL,
+from ..analysis.components import (
+    COMPONENTS,
+    HYBRID_OVER_PID,
+    PART_NAMES,
+    PID_OVER_HYBRID,
+    TUNED,
+    figures_of,
 )
+from ..analysis.paper_report import HYBRID_LABEL, PID_LABEL
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
 
-INERT = 0.05  # a part that moves no headline figure by 5 % or more is inert
-TUNED = "as tuned"
-PARTS = {  # component -> (position loop changes, speed loop changes)
-    "RBF off": ({"adaptation_gain": 0.0}, {}),
-    "SMC switching off": ({"switching_gain_m_s2": 0.0}, {}),
-    "GPIO off": ({}, {"name": "st-improved"}),
-    "all three off": (
-        {"adaptation_gain": 0.0, "switching_gain_m_s2": 0.0},
-        {"name": "st-improved"},
-    ),
-}
-HYBRID_OVER_PID = "hybrid position law, PID speed loop"
-PID_OVER_HYBRID = "PID position law, hybrid speed loop"
-COMPONENTS = (TUNED, *PARTS, HYBRID_OVER_PID, PID_OVER_HYBRID)
-
-
-def figures_of(experiment: str) -> list[str]:
-    """The headline figures' metric keys of a bench experiment ('bench_step' or
-    'bench_sine'), in the headline's order."""
-    rows = BENCH_STEP_ROWS if experiment == "bench_step" else BENCH_SINE_ROWS
-    return [rows[row][0] for exp, row, _ in HEADLINE.values() if exp == experiment]
+PARTS = dict(  # part -> (position loop changes, speed loop changes), in PART_NAMES' order
+    zip(
+        PART_NAMES,
+        (
+            ({"adaptation_gain": 0.0}, {}),  # RBF off
+            ({"switching_gain_m_s2": 0.0}, {}),  # SMC switching off
+            ({}, {"name": "st-improved"}),  # GPIO off
+            ({"adaptation_gain": 0.0, "switching_gain_m_s2": 0.0}, {"name": "st-improved"}),
+        ),
+        strict=True,
+    )
+)
 
 
 def component_runs(chosen: dict[str, "Scenario"]) -> list[tuple[str, str, "Scenario"]]:
@@ -106,47 +97,3 @@ def component_tables(runs: list[tuple], results: list, metrics: dict) -> dict[st
             row[f"true_{figure}"] = pid.get(f"true_{figure}")
         rows.append(row)
     return tables
-
-
-def _relative(value: float, reference: float) -> float:
-    return abs(abs(value) - abs(reference)) / abs(reference) if reference else float("inf")
-
-
-def component_lines(experiment: str, rows: list[dict]) -> list[str]:
-    """What the component table says, read off its numbers (measured figures): which of the
-    hybrid's parts move its figures (or that they are inert), and for each figure the share of
-    the hybrid's lead over PID that each crossed cascade keeps."""
-    by = {row["component"]: row for row in rows}
-    tuned, pid = by[TUNED], by[PID_LABEL]
-    keys = figures_of(experiment)
-    moves = {
-        part: max(_relative(by[part][k], tuned[k]) for k in keys)
-        for part in PARTS
-        if part != "all three off"
-    }
-    lines = []
-    if all(move < INERT for move in moves.values()):
-        lines.append(
-            "The tuned hybrid's own parts are inert here: switching off the RBF, the SMC "
-            f"switching or the GPIO moves no headline figure by {INERT:.0%} or more (at most "
-            f"{max(moves.values()):.0%}); its figures come from the structure left, the sliding "
-            "surface law over the super-twisting speed loop."
-        )
-    else:
-        carried = [f"{part} moves them by up to {move:.0%}" for part, move in moves.items()]
-        lines.append("Of the hybrid's parts, " + "; ".join(carried) + ".")
-    for k in keys:
-        lead = abs(pid[k]) - abs(tuned[k])
-        if lead <= 0:
-            lines.append(f"{k}: the hybrid has no lead over PID to share out.")
-            continue
-        kept = {
-            name: (abs(pid[k]) - abs(by[name][k])) / lead
-            for name in (HYBRID_OVER_PID, PID_OVER_HYBRID)
-        }
-        lines.append(
-            f"{k}: of the hybrid's lead over PID, its position law over the PID's speed loop "
-            f"keeps {kept[HYBRID_OVER_PID]:.0%}, the PID's position law over its speed loop "
-            f"{kept[PID_OVER_HYBRID]:.0%}."
-        )
-    return lines

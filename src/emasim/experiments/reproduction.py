@@ -28,6 +28,7 @@ from .batch import comparison_of, run_all
 from .components import component_runs, component_tables
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
+from .uncertainty import markdown as uncertainty_table
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
@@ -219,7 +220,7 @@ def reproduce(
                 figures,
                 notes(),
                 stages=STAGES,
-                uncertainty=UNCERTAINTY,
+                uncertainty=uncertainty_table(UNCERTAINTY),
             )
             here = DrawHere()
             for draw, path in later:
