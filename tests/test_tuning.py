@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from emasim import tuning
-from emasim.analysis.report import CHATTER_WEIGHT, tuning_cost
+from emasim.analysis.report import CHATTER_WEIGHT, CHECK_TOLERANCE, tuning_cost
 from emasim.cli import app
 from emasim.control.pid import GAIN_SPAN, PositionPID, SpeedPI
 from emasim.experiments import batch
@@ -109,24 +109,31 @@ def test_a_pid_cascade_is_tuned_as_five_independent_gains_from_its_bandwidth_des
 
 
 def test_the_neighbourhood_check_records_the_best_neighbour_and_resumes(tmp_path):
-    """After the search, NEIGHBOURS points of a Latin hypercube within x1.5 of each knob: the
-    record names the best one and its cost over the optimum's; the points are the study's,
-    so a second call runs none again; a point better than the optimum becomes the tuned set."""
+    """After the search, NEIGHBOURS points of a Latin hypercube within x1.5 of each knob about
+    the optimum (again about a better one found, at most CHECK_ROUNDS times): the record
+    names the last check's best point and its cost over that check's optimum; the points are
+    the study's, so a second call runs none again."""
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
     budget = Budget(trials=3, patience_per_knob=None, widenings=0, neighbours=6)
     url = f"sqlite:///{tmp_path / 's.db'}"
     result = tune_variant(scenario, "PI", scenario.controllers, budget, url)
     check = result.record()["neighbourhood"]
     assert check["points"] == 6
-    centre = result.study.user_attrs["checks"][0]
-    neighbours = [t for t in result.study.trials if tuning.NEIGHBOUR in t.user_attrs]
+    checks = result.study.user_attrs["checks"]
+    assert 1 <= len(checks) <= tuning.CHECK_ROUNDS
+    last = checks[-1]
+    neighbours = [
+        t for t in result.study.trials if t.user_attrs.get(tuning.NEIGHBOUR, -1) >= last["first"]
+    ]
     assert len(neighbours) == 6
     for trial in neighbours:
         for key, value in trial.params.items():
-            assert centre["centre"][key] / 1.5 <= value <= centre["centre"][key] * 1.5
+            assert last["centre"][key] / 1.5 <= value <= last["centre"][key] * 1.5
     best = min(neighbours, key=lambda t: t.value)
-    assert check["best_cost_ratio"] == pytest.approx(best.value / centre["cost"])
-    assert result.best == min(centre["cost"], best.value)
+    assert check["best_cost_ratio"] == pytest.approx(best.value / last["cost"])
+    assert result.best == min(last["cost"], best.value)
+    converged = check["best_cost_ratio"] >= 1 - CHECK_TOLERANCE
+    assert converged or len(checks) == tuning.CHECK_ROUNDS  # checked again until it holds
     again = tune_variant(scenario, "PI", scenario.controllers, budget, url)
     assert len(again.study.trials) == len(result.study.trials)  # nothing ran twice
     assert again.trials == 3  # the search's own trials: the check's are not counted
@@ -351,3 +358,41 @@ def test_a_killed_trial_is_asked_again_with_its_gains(tmp_path):
     redone = [t for t in later.study.trials if t.number > killed.number]
     assert redone[0].params == killed.params and redone[0].state.is_finished()
     assert later.trials == 2
+
+
+def test_a_better_neighbour_is_checked_again_about_itself():
+    """A check whose best point beats the optimum by more than CHECK_TOLERANCE makes that
+    point the optimum, and the next check is centred on it (a cost whose minimum lies 30 %
+    above the first optimum's knobs, evaluated without simulating)."""
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    controllers = with_explicit_gains(scenario.controllers, scenario)
+    start = {
+        "speed.kp_A_s_per_rad": controllers.speed.kp_A_s_per_rad,
+        "speed.ki_A_per_rad": controllers.speed.ki_A_per_rad,
+    }
+    target = {key: 1.3 * value for key, value in start.items()}
+
+    def cost(params):
+        return 1.0 + sum(np.log(params[k] / target[k]) ** 2 for k in params)
+
+    def evaluate_params(points):
+        return [(cost(p), cost(p), 0.0) for p in points]
+
+    study = optuna.create_study()
+    study.add_trial(
+        optuna.trial.create_trial(
+            params=start,
+            distributions={
+                k: optuna.distributions.FloatDistribution(v / 10, v * 10, log=True)
+                for k, v in start.items()
+            },
+            value=cost(start),
+        )
+    )
+    first = tuning.check_neighbourhood(study, controllers, 8, 0, 4, evaluate_params)
+    assert first["best_cost_ratio"] < 1 - CHECK_TOLERANCE and study.best_value < cost(start)
+    second = tuning.check_neighbourhood(study, controllers, 8, 0, 4, evaluate_params)
+    checks = study.user_attrs["checks"]
+    assert len(checks) == 2 and checks[1]["centre"] == first["best_point"]
+    assert second["points"] == 8  # its own points, not the first check's
+    assert study.best_value <= checks[1]["cost"]

@@ -45,7 +45,7 @@ from pathlib import Path
 import optuna
 
 from .analysis.pareto import pareto_front, thinned
-from .analysis.report import COST_FORMULA, tuning_terms, weighted_cost
+from .analysis.report import CHECK_TOLERANCE, COST_FORMULA, tuning_terms, weighted_cost
 from .errors import InputError, SimulationDiverged
 from .search_rules import Budget, bound_side, converged, hard_limits, widened
 from .sim.engine import simulate
@@ -57,6 +57,7 @@ HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
 GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
 NEIGHBOUR = "neighbour"  # user attribute of a neighbourhood-check point: its index
 CHECK_STRIDE = 100_000  # neighbour indices of successive checks of one study start this apart
+CHECK_ROUNDS = 3  # checks about each new optimum a better neighbour gives, at most
 NEIGHBOUR_SPAN = 1.5  # ... each knob within x1.5 either way (+-50 %, in log space)
 TRACKING, CHATTER = "tracking", "chatter"  # user attributes: a trial's two cost terms
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
@@ -336,6 +337,12 @@ def neighbour_points(
     return points
 
 
+def _improved(study, check: dict) -> bool:
+    """True when the study's best is better than ``check``'s optimum by more than
+    CHECK_TOLERANCE: one of its points was, and is the new optimum."""
+    return study.best_value < (1.0 - CHECK_TOLERANCE) * check["cost"]
+
+
 def check_neighbourhood(
     study, controllers, count: int, seed: int, batch: int, evaluate_params
 ) -> dict:
@@ -347,15 +354,21 @@ def check_neighbourhood(
 
     The points are trials of the study (user attribute NEIGHBOUR: check number x
     CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after
-    a check (a larger budget) is checked again about its new optimum."""
+    a check (a larger budget), or whose check found a better neighbour, is checked again about
+    its new optimum (tune_variant: at most CHECK_ROUNDS checks)."""
     searched = len(_completed_values(study))
     checks = list(study.user_attrs.get("checks", []))
-    if not checks or checks[-1]["after"] != searched:
+    if not checks or checks[-1]["after"] != searched or _improved(study, checks[-1]):
         checks.append(
-            {"centre": dict(study.best_params), "cost": study.best_value, "after": searched}
+            {
+                "centre": dict(study.best_params),
+                "cost": study.best_value,
+                "after": searched,
+                "first": len(checks) * CHECK_STRIDE,
+            }
         )
         study.set_user_attr("checks", checks)
-    first = (len(checks) - 1) * CHECK_STRIDE
+    first = checks[-1].get("first", (len(checks) - 1) * CHECK_STRIDE)
     centre, cost = checks[-1]["centre"], checks[-1]["cost"]
     points = neighbour_points(centre, controllers, count, seed)
     done = {t.user_attrs[NEIGHBOUR] - first for t in study.trials if NEIGHBOUR in t.user_attrs}
@@ -475,11 +488,13 @@ def tune_variant(
     values = _completed_values(study)
     if not values:
         raise InputError(f"tune {label}: no trial completed; raise --trials")
-    check = (
-        check_neighbourhood(study, controllers, budget.neighbours, seed, batch, evaluate_params)
-        if budget.neighbours
-        else None
-    )
+    check = None
+    for _ in range(CHECK_ROUNDS if budget.neighbours else 0):
+        check = check_neighbourhood(
+            study, controllers, budget.neighbours, seed, batch, evaluate_params
+        )
+        if check["best_cost_ratio"] >= 1.0 - CHECK_TOLERANCE:
+            break  # converged: no neighbour is better by more than the tolerance
     given = [t.value for t in study.trials if t.value is not None and t.user_attrs.get(GIVEN)]
     return Tuned(
         _controllers_with(controllers, study.best_params),
