@@ -26,6 +26,7 @@ from ..analysis.components import (
     figures_of,
 )
 from ..analysis.paper_report import HYBRID_LABEL, PID_LABEL
+from ..analysis.report import TRUE_PREFIX
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
@@ -76,6 +77,15 @@ def component_runs(chosen: dict[str, "Scenario"]) -> list[tuple[str, str, "Scena
     return runs
 
 
+def _row(component: str, metrics: dict, figures: list[str]) -> dict:
+    """A table row: the component's name and each figure, measured and of the true angle."""
+    row = {"component": component}
+    for figure in figures:
+        row[figure] = metrics.get(figure)
+        row[TRUE_PREFIX + figure] = metrics.get(TRUE_PREFIX + figure)
+    return row
+
+
 def component_tables(runs: list[tuple], results: list, metrics: dict) -> dict[str, list[dict]]:
     """experiment key ('bench_step') -> rows {component, <figure>: value, true_<figure>:
     value}: the component runs' headline figures (measured, and of the true angle), with
@@ -83,17 +93,8 @@ def component_tables(runs: list[tuple], results: list, metrics: dict) -> dict[st
     tables = {}
     for (name, component, _), result in zip(runs, results, strict=True):
         key = name.replace("-", "_")
-        keys = figures_of(key)
-        row = {"component": component}
-        for figure in keys:
-            row[figure] = result.metrics.get(figure)
-            row[f"true_{figure}"] = result.metrics.get(f"true_{figure}")
-        tables.setdefault(key, []).append(row)
+        tables.setdefault(key, []).append(_row(component, result.metrics, figures_of(key)))
     for key, rows in tables.items():
         pid = metrics[key.replace("_", "-")][PID_LABEL]
-        row = {"component": PID_LABEL}
-        for figure in figures_of(key):
-            row[figure] = pid.get(figure)
-            row[f"true_{figure}"] = pid.get(f"true_{figure}")
-        rows.append(row)
+        rows.append(_row(PID_LABEL, pid, figures_of(key)))
     return tables
