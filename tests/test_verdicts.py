@@ -28,8 +28,9 @@ def candidates(preload: float) -> dict[str, object]:
     """label -> single-set bench-step scenario at ``preload`` N m: the tuned sets, and PID
     cascades designed by bandwidth alone (emasim.control.pid)."""
     load = f"plant.load_motor.preload_Nm={preload}"
+    short = "duration_s=6"  # 4 s of steady window: the figures and the cost judge the same runs
     sets = {
-        label: load_scenario("bench-step", label=label, settings=[load])
+        label: load_scenario("bench-step", label=label, settings=[load, short])
         for label in ("PID", "hybrid")
     }
     for label, (speed, position) in HAND_PICKED.items():
