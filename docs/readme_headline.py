@@ -137,9 +137,15 @@ def verdict_line(headline: dict, verdicts: dict | None = None) -> str:
     return "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
 
 
-def signed(x: float) -> str:
-    """A whole percentage with its sign, the minus as in the headline table (−91 %, +17 %)."""
-    return f"{x:+.0f}".replace("-", "−")
+def signed(x: float | None) -> str:
+    """A whole percentage with its sign, the minus as in the headline table (−91 %, +17 %);
+    None (tables.json's null for an infinite change: PID's figure 0, the hybrid's not) as +∞."""
+    return "+∞" if x is None else f"{x:+.0f}".replace("-", "−")
+
+
+def negated(x: float | None) -> float | None:
+    """-x, the hybrid's change against PID from the improvement (None stays None)."""
+    return None if x is None else -x
 
 
 def render_robustness(verdicts: dict, headline: dict) -> str:
@@ -154,12 +160,14 @@ def render_robustness(verdicts: dict, headline: dict) -> str:
         v = verdicts[key]
         low, high = (100 * x for x in v["win_rate_ci95"])
         gain_low, gain_high = v["ci95_pct"]
-        nominal = f"{signed(-100 * headline[key]['ours_reduction'])} %" if key in headline else "-"
+        change = headline[key]["ours_reduction"] if key in headline else None
+        nominal = "-" if change is None else f"{signed(-100 * change)} %"  # None: PID at 0
         lines.append(
             f"| {words} | {100 * v['win_rate']:.0f} % of {v['runs']} plants "
-            f"[{low:.0f}, {high:.0f}] | {signed(-v['median_improvement_pct'])} % "
-            f"[{signed(-gain_high)}, {signed(-gain_low)}] "
-            f"| {signed(-v['improvement_p95_pct'])} to {signed(-v['improvement_p05_pct'])} % "
+            f"[{low:.0f}, {high:.0f}] | {signed(negated(v['median_improvement_pct']))} % "
+            f"[{signed(negated(gain_high))}, {signed(negated(gain_low))}] "
+            f"| {signed(negated(v['improvement_p95_pct']))} to "
+            f"{signed(negated(v['improvement_p05_pct']))} % "
             f"| {nominal} |"
         )
     verdicts_of = {True: [], False: [], None: []}  # hybrid better, PID better, open

@@ -210,7 +210,9 @@ def save_figure(figure, path, dpi: int = 110) -> None:
 
 def plot_bench(results: dict, title: str | None = None):
     """The bench figures of the paper (16-19, 20-23): rudder angle (top) and rudder rate
-    (bottom), one column per controller set, the reference dashed."""
+    (bottom), one column per controller set, the reference dashed; what the bench measures
+    (the encoder's reading and its differenced rate, which the figures judge) and the true
+    rudder angle and rate."""
     from .report import rudder_traces
 
     fig = Figure(figsize=(5 * len(results), 6), layout="constrained")
@@ -218,9 +220,13 @@ def plot_bench(results: dict, title: str | None = None):
     for col, (name, result) in enumerate(results.items()):
         angle, reference, rate, reference_rate = rudder_traces(result)
         _line(axes[0, col], result.t, reference, "k--", lw=1, label="command")
-        _line(axes[0, col], result.t, angle, lw=1.2, label="rudder angle")
+        _line(axes[0, col], result.t, angle, lw=1.2, label="rudder angle (true)")
         _line(axes[1, col], result.t, reference_rate, "k--", lw=1, label="command rate")
-        _line(axes[1, col], result.t, rate, lw=0.8, label="rudder rate")
+        _line(axes[1, col], result.t, rate, lw=0.8, label="rudder rate (true)")
+        if "measured_rudder_rad" in result.columns:
+            reading, _, measured_rate, _ = rudder_traces(result, measured=True)
+            _line(axes[0, col], result.t, reading, "C1", lw=0.8, label="encoder reading")
+            _line(axes[1, col], result.t, measured_rate, "C1", lw=0.8, label="differenced rate")
         axes[0, col].set_title(name)
         axes[0, col].set_ylabel("angle (deg)")
         axes[1, col].set_ylabel("angular velocity (deg/s)")
