@@ -14,11 +14,12 @@ from emasim.experiments.acceptance import Battery, run_acceptance
 from emasim.scenarios.loader import load_scenario
 
 TARGET_HZ = 4.0  # the closed loop's -3 dB bandwidth we want
-SET = ["controllers.speed.bandwidth_Hz=50", "controllers.position.velocity_feedforward=false"]
+SPEED = 'controllers.speed={name = "pi", bandwidth_Hz = 50}'  # both loops by bandwidth alone
 
 
 def design(bandwidth_Hz: float):
-    settings = [*SET, f"controllers.position.bandwidth_Hz={bandwidth_Hz}"]
+    position = f"name = 'pi', bandwidth_Hz = {bandwidth_Hz}, velocity_feedforward = false"
+    settings = [SPEED, f"controllers.position={{{position}}}"]
     return load_scenario(
         "position-step", controllers=["position=pi", "speed=pi"], settings=settings
     )

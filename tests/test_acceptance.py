@@ -93,9 +93,9 @@ PLAY = [
     "plant.load.rod_mass_kg=0.1",
     "plant.load.rudder_inertia_kgm2=0",
     "plant.load.viscous_Ns_per_m=1000",
-    "controllers.position.velocity_feedforward=false",
-    "controllers.position.bandwidth_Hz=4",
-    "controllers.speed.bandwidth_Hz=50",  # fixed here, not the comparison's tuned gains
+    # fixed here by bandwidth, not the comparison's tuned gains: the whole tables replaced
+    "controllers.position={name = 'pi', bandwidth_Hz = 4, velocity_feedforward = false}",
+    "controllers.speed={name = 'pi', bandwidth_Hz = 50}",
 ]
 
 

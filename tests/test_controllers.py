@@ -9,6 +9,7 @@ from pydantic import ValidationError
 from scipy.signal import lfilter
 
 from emasim.control.pid import KAW, PositionPID, pack_pid, pid
+from emasim.errors import InputError
 from emasim.interface import M_POSITION, M_SPEED, N_MEAS, N_OUT, N_REF, O_VALUE, R_VALUE
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
@@ -184,3 +185,15 @@ def test_on_a_step_at_the_first_sample_the_pid_variants_run_the_same_trace():
     moving = traces["bench-sine", ""]
     for variant in ("velocity_feedforward=true", 'derivative_on="error"'):
         assert not np.array_equal(traces["bench-sine", variant], moving)  # the setting bites
+
+
+def test_a_bandwidth_beside_both_explicit_gains_is_refused_not_ignored():
+    """A tuned PID set holds its gains; a --set of its bandwidth would be overridden by them,
+    so it is refused in one line; replacing the whole table designs by bandwidth again."""
+    with pytest.raises(InputError, match="bandwidth_Hz and the gains kp_A_s_per_rad"):
+        load_scenario("bench-step", label="PID", settings=["controllers.speed.bandwidth_Hz=50"])
+    redesigned = load_scenario(
+        "bench-step", label="PID", settings=["controllers.speed={name = 'pi', bandwidth_Hz = 50}"]
+    )
+    assert redesigned.controllers.speed.kp_A_s_per_rad is None
+    assert redesigned.controllers.speed.bandwidth_Hz == 50

@@ -597,10 +597,12 @@ def tune_scenario(
         }
         if entries is not None:
             entry = dict(entries[i])
-            entry["controllers"] = _with_overrides(entry.get("controllers", {}), overrides)
+            entry["controllers"] = _with_overrides(entry.get("controllers", {}), overrides, tuned)
             entries[i] = entry
         else:
-            tuned_raw["controllers"] = _with_overrides(tuned_raw.get("controllers", {}), overrides)
+            tuned_raw["controllers"] = _with_overrides(
+                tuned_raw.get("controllers", {}), overrides, tuned
+            )
     if entries is not None:
         tuned_raw["compare"] = entries
     tuned_raw["tuning"] = {
@@ -615,9 +617,13 @@ def tune_scenario(
     return tuned_raw, results
 
 
-def _with_overrides(section, overrides: dict) -> dict:
-    """A controllers table (or cascade name) with per-loop overrides laid over it."""
+def _with_overrides(section, overrides: dict, tuned) -> dict:
+    """A controllers table (or cascade name) with per-loop overrides laid over it, less the
+    keys the tuned Controllers ``tuned`` leave unset (None: a bandwidth its explicit gains
+    replace)."""
     section = {"cascade": section} if isinstance(section, str) else dict(section)
     for loop, values in overrides.items():
-        section[loop] = {**section.get(loop, {}), **values}
+        config = getattr(tuned, loop)
+        merged = {**section.get(loop, {}), **values}
+        section[loop] = {k: v for k, v in merged.items() if getattr(config, k, v) is not None}
     return section

@@ -36,6 +36,8 @@ from ..numerics import clamp
 from .slot import Compiled, ControllerConfig, PlantFacts, controller_law
 
 GAIN_SPAN = 10.0  # a tuning searches each gain from a tenth to ten times the gain it starts at
+SPEED_BANDWIDTH_HZ = 50.0  # SpeedPI's bandwidth when neither it nor its gains are given
+POSITION_BANDWIDTH_HZ = 4.0  # PositionPID's, likewise
 KP, KI, KD, TF, U_MIN, U_MAX, KFF, CHANNEL, KAW, D_WEIGHT = range(10)
 N_PARAMS = 10
 INTEGRAL, DERIVATIVE, V_PREV, STARTED = range(4)  # V_PREV: the derivative's last input
@@ -81,7 +83,9 @@ class SpeedPI(ControllerConfig):
 
     loop: ClassVar = "speed"
     name: Literal["pi"] = "pi"
-    bandwidth_Hz: float = Field(default=50.0, gt=0, le=1e4, description="alpha_s / (2 pi)")
+    bandwidth_Hz: float | None = Field(
+        default=None, gt=0, le=1e4, description="alpha_s / (2 pi); 50 Hz unless gains are given"
+    )
     kp_A_s_per_rad: float | None = Field(
         default=None, ge=0, le=1e6, description="overrides bandwidth"
     )
@@ -92,9 +96,13 @@ class SpeedPI(ControllerConfig):
         default=False, description="add J/kt * dw_ref/dt to the current command"
     )
 
+    @model_validator(mode="after")
+    def _bandwidth_or_gains(self):
+        return _bandwidth_or_gains(self, "kp_A_s_per_rad", "ki_A_per_rad")
+
     def gains(self, plant: PlantFacts) -> tuple[float, float]:
         """(Kp in A s/rad, Ki in A/rad): the fields where given, else from the bandwidth."""
-        alpha = 2.0 * math.pi * self.bandwidth_Hz
+        alpha = 2.0 * math.pi * (self.bandwidth_Hz or SPEED_BANDWIDTH_HZ)
         j_over_kt = plant.inertia_kgm2 / plant.torque_constant_Nm_per_A
         kp = self.kp_A_s_per_rad if self.kp_A_s_per_rad is not None else 2.0 * alpha * j_over_kt
         ki = self.ki_A_per_rad if self.ki_A_per_rad is not None else alpha**2 * j_over_kt
@@ -108,7 +116,9 @@ class SpeedPI(ControllerConfig):
 
     def with_explicit_gains(self, plant: PlantFacts) -> "SpeedPI":
         kp, ki = self.gains(plant)
-        return self.model_copy(update={"kp_A_s_per_rad": kp, "ki_A_per_rad": ki})
+        return self.model_copy(
+            update={"kp_A_s_per_rad": kp, "ki_A_per_rad": ki, "bandwidth_Hz": None}
+        )
 
     def tunable_ranges(self):
         if self.kp_A_s_per_rad is None or self.ki_A_per_rad is None:
@@ -127,7 +137,9 @@ class PositionPID(ControllerConfig):
 
     loop: ClassVar = "position"
     name: Literal["pid", "pi"] = "pid"
-    bandwidth_Hz: float = Field(default=4.0, gt=0, le=1e3, description="alpha_p / (2 pi)")
+    bandwidth_Hz: float | None = Field(
+        default=None, gt=0, le=1e3, description="alpha_p / (2 pi); 4 Hz unless gains are given"
+    )
     kd: float | None = Field(
         default=None, ge=0, le=100, description="derivative gain; pid default 0.05"
     )
@@ -145,11 +157,11 @@ class PositionPID(ControllerConfig):
     def _no_derivative_in_pi(self):
         if self.name == "pi" and self.kd:
             raise ValueError("kd must be 0 or absent for the 'pi' controller; use name = 'pid'")
-        return self
+        return _bandwidth_or_gains(self, "kp_per_s", "ki_per_s2")
 
     def gains(self) -> tuple[float, float, float]:
         """(Kp in 1/s, Ki in 1/s^2, Kd): the fields where given, else from the bandwidth."""
-        alpha = 2.0 * math.pi * self.bandwidth_Hz
+        alpha = 2.0 * math.pi * (self.bandwidth_Hz or POSITION_BANDWIDTH_HZ)
         kd = 0.0 if self.name == "pi" else (0.05 if self.kd is None else self.kd)
         kp = self.kp_per_s if self.kp_per_s is not None else 2.0 * alpha * (1.0 + kd)
         ki = self.ki_per_s2 if self.ki_per_s2 is not None else alpha**2 * (1.0 + kd)
@@ -173,7 +185,7 @@ class PositionPID(ControllerConfig):
 
     def with_explicit_gains(self, plant: PlantFacts) -> "PositionPID":
         kp, ki, kd = self.gains()
-        explicit = {"kp_per_s": kp, "ki_per_s2": ki}
+        explicit = {"kp_per_s": kp, "ki_per_s2": ki, "bandwidth_Hz": None}
         return self.model_copy(update=explicit | ({"kd": kd} if self.name == "pid" else {}))
 
     def tunable_ranges(self):
@@ -184,6 +196,19 @@ class PositionPID(ControllerConfig):
             return ranges
         gains = {"kp_per_s": self.kp_per_s, "ki_per_s2": self.ki_per_s2}
         return around(gains | ({"kd": self.kd} if self.name == "pid" else {}))
+
+
+def _bandwidth_or_gains(config, kp: str, ki: str):
+    """Refuse a bandwidth given beside both explicit gains: they would override its design,
+    and the bandwidth would be silently ignored."""
+    if config.bandwidth_Hz is not None and getattr(config, kp) is not None:
+        if getattr(config, ki) is not None:
+            raise ValueError(
+                f"bandwidth_Hz and the gains {kp}, {ki} are both given: give the gains, or the "
+                f"bandwidth alone (replace the whole table, e.g. "
+                f"controllers.{config.loop}={{name = '{config.name}', bandwidth_Hz = ...}})"
+            )
+    return config
 
 
 def around(gains: dict[str, float]) -> dict[str, tuple[float, float]]:
