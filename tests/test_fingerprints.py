@@ -4,7 +4,9 @@
 shipped scenario at 48 evenly spaced rows, stored by ``tests/trace_fingerprints.py`` before the
 composable-plant redesign, and stored again when the fair tuning rule re-tuned the shipped gains
 (only the runs whose gains moved changed: position-step's four sets and speed-step's ST-SMC;
-every column of the plant's elements since, the end stops' included). The runs are
+every column of the plant's elements since, the end stops' included; and again when the
+verdicts' cost and the five-gain PID re-tuned the simulation scenarios: only speed-step's,
+speed-sine's and position-step's traces moved, the frozen bench ones not at all). The runs are
 deterministic (two runs in one process agree bit for bit, sliding-mode sets included), so the
 comparison allows only 1e-12 of each column's scale: the round-off of a reordered sum, not a
 changed model.
