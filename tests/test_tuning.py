@@ -254,13 +254,17 @@ def test_tuning_reports_each_trial(tmp_path):
 
 def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path, monkeypatch):
     """A range far below the speed loop's useful bandwidth (5-6 Hz): it is first stretched to
-    the gains given (the comparison's 70.5 Hz set, the first trial), where the optimum sits, on
-    the upper bound; that bound moves out by WIDEN_FACTOR, and the next round searches the wider
+    the gains given (a 70 Hz design, the first trial), where the optimum sits, on the upper
+    bound; that bound moves out by WIDEN_FACTOR, and the next round searches the wider
     range with as many trials; a resumed study continues from its widened range without new
     trials."""
     monkeypatch.setattr(SpeedPI, "tunable_ranges", lambda self: {"bandwidth_Hz": (5.0, 6.0)})
     monkeypatch.setattr(SpeedPI, "with_explicit_gains", lambda self, plant: self)  # its own knob
-    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
+    scenario = load_scenario(
+        "speed-step",
+        controllers=["speed=pi"],
+        settings=[*SHORT, "controllers.speed={name = 'pi', bandwidth_Hz = 70}"],
+    )
     storage = f"sqlite:///{tmp_path / 'study.db'}"
     budget = Budget(trials=3, patience_per_knob=None, widenings=2, neighbours=0)
     result = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
