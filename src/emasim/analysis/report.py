@@ -25,6 +25,9 @@ angle, as a step or a sine. Every window and band is stated here, once:
   tenth of the dip is what a plot scaled to the dip shows as "back"; the floor keeps a dip
   below the resolution of a speed or position sensor from asking for a return finer than
   that resolution;
+* the bench's figures (rudder step and sine) are computed on what the bench measures, the
+  rudder encoder's reading and its rate differenced over RATE_WINDOW_S (differenced_rate),
+  with the same figure of the true rudder angle beside each, keyed true_<figure>;
 * rudder step (the bench, tables 2-5), in deg and deg/s: rise time 10-90 %, settling time
   into a 5 % band (the paper's PID oscillates +-0.2 deg about 4.72 deg, over 4 %), and over the
   steady window from BENCH_STEADY_S to the end: chattering of the rudder angle, error
