@@ -1,18 +1,21 @@
-"""The README's headline tables, rendered from ``docs/headline.json`` and
-``docs/robustness.json``: the abstract's five figures, the paper's beside ours, as ``emasim
-reproduce`` measured them, and their robustness over the plant uncertainty, as ``emasim
-reproduce --robustness`` measured it.
+"""The README's headline tables, rendered from ``docs/headline.json``,
+``docs/robustness.json`` and ``docs/verdict_map.json``: the abstract's five figures, the
+paper's beside ours, as ``emasim reproduce`` measured them, their robustness over the plant
+uncertainty and where each verdict flips, as ``emasim reproduce --robustness`` measured them.
 
     python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's headline
-                                                   # (and robustness, when it has one) in docs/,
-                                                   # rewrite the README
+                                                   # (and robustness and verdict map, when it
+                                                   # has them) in docs/, rewrite the README
     python docs/readme_headline.py                 # rewrite the README from docs/
 
 The README holds the tables between ``<!-- headline:begin -->`` and ``<!-- headline:end -->``,
-and ``<!-- robustness:begin -->`` and ``<!-- robustness:end -->``; ``tests/test_reproduce.py``
-checks that the blocks equal :func:`render` and :func:`render_robustness` of the stored
-objects, that a fresh reproduction measures the stored headline, and that its verdicts agree
-with the stored robustness. Standard library only.
+``<!-- robustness:begin -->`` and ``<!-- robustness:end -->``, and ``<!-- verdict-map:begin
+-->`` and ``<!-- verdict-map:end -->``; ``tests/test_reproduce.py`` checks that the blocks
+equal :func:`render`, :func:`render_robustness` and :func:`render_verdict_map` of the stored
+objects, that a fresh reproduction measures the stored headline and the stored map's nominal
+cells, and that its verdicts agree with the stored robustness; ``tests/test_verdict_map.py``
+re-runs one cell of the stored map off the nominal bench. Standard library only, but for the
+map's lines (emasim.analysis.verdict_map).
 """
 
 import json
@@ -22,8 +25,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "headline.json"
 ROBUSTNESS = ROOT / "docs" / "robustness.json"
+VERDICT_MAP = ROOT / "docs" / "verdict_map.json"
 README = ROOT / "README.md"
-BLOCKS = {"headline": "<!-- headline:{}-->", "robustness": "<!-- robustness:{}-->"}
+BLOCKS = {
+    "headline": "<!-- headline:{}-->",
+    "robustness": "<!-- robustness:{}-->",
+    "verdict-map": "<!-- verdict-map:{}-->",
+}
 NAMES = {  # headline key -> the README's wording
     "step_steady_error_reduction": "step steady-state error (RMS)",
     "step_vibration_amplitude_reduction": "step vibration amplitude",
@@ -196,16 +204,28 @@ def render_robustness(verdicts: dict, headline: dict) -> str:
     return "\n".join(lines)
 
 
+def render_verdict_map(vmap: dict) -> str:
+    """The README's list of where each verdict flips: the lines of
+    emasim.analysis.verdict_map.flip_lines, read off the stored map."""
+    from emasim.analysis.verdict_map import flip_lines
+
+    return "\n".join(f"- {line}" for line in flip_lines(vmap))
+
+
 def block_of(text: str, name: str) -> str:
     """The README's text between the block's markers, without the newlines that frame it."""
     begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
     return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
 
 
-def write_readme(headline: dict, verdicts: dict) -> None:
+def write_readme(headline: dict, verdicts: dict, vmap: dict) -> None:
     text = README.read_text()
-    robustness = render_robustness(verdicts, headline)
-    for name, body in (("headline", render(headline, verdicts)), ("robustness", robustness)):
+    blocks = {
+        "headline": render(headline, verdicts),
+        "robustness": render_robustness(verdicts, headline),
+        "verdict-map": render_verdict_map(vmap),
+    }
+    for name, body in blocks.items():
         begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
         start, stop = text.index(begin) + len(begin), text.index(end)
         text = text[:start] + "\n" + body + "\n" + text[stop:]
@@ -218,7 +238,13 @@ def main() -> None:
         STORE.write_text(json.dumps(tables["headline"], indent=1) + "\n")
         if "robustness" in tables:
             ROBUSTNESS.write_text(json.dumps(tables["robustness"], indent=1) + "\n")
-    write_readme(json.loads(STORE.read_text()), json.loads(ROBUSTNESS.read_text()))
+        if "verdict_map" in tables:
+            VERDICT_MAP.write_text(json.dumps(tables["verdict_map"], indent=1) + "\n")
+    write_readme(
+        json.loads(STORE.read_text()),
+        json.loads(ROBUSTNESS.read_text()),
+        json.loads(VERDICT_MAP.read_text()),
+    )
 
 
 if __name__ == "__main__":

@@ -158,6 +158,26 @@ def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
             assert item["hybrid_better"], key
 
 
+def test_the_verdict_maps_nominal_cells_are_this_reproductions_headline(report):
+    """docs/verdict_map.json (the README's lines of where each verdict flips) holds, at the
+    nominal bench's cell, the very figures a fresh reproduction measures against both PID
+    variants: the map is of today's bench and gains."""
+    from emasim.analysis.paper_report import PID_LABEL
+    from emasim.analysis.verdict_map import cell_at
+
+    vmap = json.loads(module_at("docs/readme_headline.py").VERDICT_MAP.read_text())
+    measured = json.loads((report / "tables.json").read_text())["headline"]
+    for key, item in measured.items():
+        against = vmap["figures"][key]["against"]
+        home = {label: cell_at(cells, vmap["nominal"]) for label, cells in against.items()}
+        assert home[PID_LABEL]["baseline"] == pytest.approx(abs(item["ours_pid"]), rel=1e-9)
+        for label, cell in home.items():
+            assert cell["hybrid"] == pytest.approx(abs(item["ours_hybrid"]), rel=1e-9), key
+            if label != PID_LABEL:
+                value = abs(item["variants"][label]["value"])
+                assert cell["baseline"] == pytest.approx(value, rel=1e-9), (key, label)
+
+
 def test_tables_agree_with_the_runs_and_the_paper(report):
     tables = json.loads((report / "tables.json").read_text())
     bench = json.loads((report / "runs" / "bench-step" / "metrics.json").read_text())

@@ -663,8 +663,8 @@ def reproduce(
         bool,
         typer.Option(
             "--robustness",
-            help="run the Monte Carlo of the headline verdicts over the plant uncertainty "
-            "(minutes; resumable, in runs/robustness/)",
+            help="run the Monte Carlo of the headline verdicts over the plant uncertainty, "
+            "the wear study and the verdict map (minutes; resumable, in runs/robustness/)",
         ),
     ] = False,
     runs: Annotated[
@@ -680,8 +680,8 @@ def reproduce(
     ] = 0,
 ) -> None:
     """Run every paper experiment and write report.md, report.html and tables.json; the
-    robustness of the headline verdicts is that of the last --robustness study of these
-    experiments, --seed and version, when one exists."""
+    robustness of the headline verdicts, the wear and the verdict map are those of the last
+    --robustness studies of these experiments, --seed and version, when they exist."""
     from .analysis.paper_report import EXPERIMENTS
     from .experiments.reproduction import check_robustness
     from .experiments.reproduction import reproduce as run_all

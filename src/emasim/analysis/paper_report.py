@@ -706,6 +706,17 @@ def write_report(
             "No robustness study of these experiments and this emasim version yet: "
             "`emasim reproduce --robustness` runs one (minutes).",
         ]
+    if tables.get("verdict_map"):
+        from .verdict_map import markdown as verdict_map_markdown
+
+        drawn = figures.get("verdict_map", [None])[0]
+        parts += verdict_map_markdown(tables["verdict_map"], drawn)
+    elif "headline" in tables:
+        parts += [
+            "## Where each verdict flips",
+            "No verdict map of these experiments and this emasim version yet: "
+            "`emasim reproduce --robustness` makes one with the Monte Carlo.",
+        ]
     if tables.get("components"):
         parts += _components_markdown(tables["components"])
     for exp in EXPERIMENTS:

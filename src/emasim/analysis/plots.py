@@ -335,3 +335,65 @@ def plot_wear(degradation: dict):
         ax.set_visible(False)
     fig.legend(*axes[0].get_legend_handles_labels(), loc="outside lower center", ncols=2)
     return fig
+
+
+MAP_CLIP_PCT = 100.0  # the verdict map's colour scale: margins beyond +-100 % share its ends
+
+
+def plot_verdict_map(vmap: dict):
+    """The verdict map (emasim.experiments.verdict_map): a panel per headline figure (rows)
+    and baseline (columns), each cell's margin 100 (|baseline| - |hybrid|) / |baseline| in
+    colour and in figures (blue: the hybrid wins), preload across, encoder and hinge clearance
+    down, the nominal bench's cell framed."""
+    from matplotlib.patches import Rectangle
+
+    from .verdict_map import cell_at, margin_of
+
+    axes_of, nominal = vmap["axes"], vmap["nominal"]
+    down = [(e, c) for e in axes_of["encoder"] for c in axes_of["hinge_clearance_mm"]]
+    across = axes_of["preload_Nm"]
+    entries = list(vmap["figures"].items())
+    baselines = list(entries[0][1]["against"])
+    fig = Figure(figsize=(4.2 * len(baselines), 2.3 * len(entries)), layout="constrained")
+    panels = fig.subplots(len(entries), len(baselines), squeeze=False)
+    image = None
+    for row, (name, entry) in enumerate(entries):
+        for col, baseline in enumerate(baselines):
+            ax, cells = panels[row][col], entry["against"][baseline]
+            grid = np.array(
+                [
+                    [
+                        margin_of(
+                            cell_at(cells, {"preload_Nm": p, "encoder": e, "hinge_clearance_mm": c})
+                        )
+                        for p in across
+                    ]
+                    for e, c in down
+                ]
+            )
+            image = ax.imshow(
+                np.clip(grid, -MAP_CLIP_PCT, MAP_CLIP_PCT),
+                cmap="RdBu",
+                vmin=-MAP_CLIP_PCT,
+                vmax=MAP_CLIP_PCT,
+                aspect="auto",
+            )
+            for (i, j), value in np.ndenumerate(grid):
+                text = f"{value:+.0f}" if np.isfinite(value) else "-inf"
+                ax.text(j, i, text, ha="center", va="center", fontsize=7)
+            home = (
+                down.index((nominal["encoder"], nominal["hinge_clearance_mm"])),
+                across.index(nominal["preload_Nm"]),
+            )
+            ax.add_patch(
+                Rectangle((home[1] - 0.5, home[0] - 0.5), 1, 1, fill=False, lw=2, color="k")
+            )
+            ax.set_xticks(range(len(across)), [f"{p:g}" for p in across], fontsize=7)
+            ax.set_yticks(range(len(down)), [f"{e}, {c:g} mm" for e, c in down], fontsize=7)
+            ax.set_title(
+                f"{name.removesuffix('_reduction').replace('_', ' ')}: vs {baseline}", fontsize=8
+            )
+            if row == len(entries) - 1:
+                ax.set_xlabel("standing preload (N m)", fontsize=8)
+    fig.colorbar(image, ax=panels, label="hybrid's margin (%), clipped at +-100", shrink=0.6)
+    return fig

@@ -1,6 +1,7 @@
 """The paper's experiments, run: every shipped paper scenario's comparison, the hinge
 clearance sweep, the ablation of the bench's elements and the hybrid part by part
-(emasim.experiments.components), rendered by
+(emasim.experiments.components); with ``robustness_runs``, the Monte Carlo, the wear study and
+the verdict map (emasim.experiments.verdict_map) too, else their latest studies; rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
 import time
@@ -22,7 +23,7 @@ from ..analysis.paper_report import (
 from ..errors import InputError
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
-from . import wear
+from . import verdict_map, wear
 from .ablation import STAGES, ablation_runs, ablation_table
 from .batch import comparison_of, run_all
 from .components import component_runs, component_tables
@@ -110,12 +111,13 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tupl
     """Hand each experiment's figure (the heavy ones) to ``drawer`` (a FigureProcess, see
     emasim.analysis.figure_process); return ({section: [(title, path in the report
     folder)]}, [(draw, path)] of the light ones: the Pareto fronts, wear and the clearance
-    sweep, for this process to draw once it has written the rest)."""
+    sweep and the verdict map, for this process to draw once it has written the rest)."""
     from ..analysis.plots import (
         plot_bench,
         plot_clearance_sweep,
         plot_comparison,
         plot_pareto,
+        plot_verdict_map,
         plot_wear,
     )
 
@@ -133,6 +135,10 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tupl
     if "wear" in tables:
         later.append((partial(plot_wear, tables["wear"]), folder / "figures/wear.png"))
         figures["wear"] = [("wear", "figures/wear.png")]
+    if "verdict_map" in tables:
+        path = "figures/verdict-map.png"
+        later.append((partial(plot_verdict_map, tables["verdict_map"]), folder / path))
+        figures["verdict_map"] = [("where each verdict flips", path)]
     if "clearance_sweep" in tables:
         path = "figures/clearance-sweep.png"
         later.append((partial(plot_clearance_sweep, tables["clearance_sweep"]), folder / path))
@@ -169,11 +175,12 @@ def reproduce(
     """Run the paper's experiments (or ``only`` those) and write the report folder; with
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
     for the bench experiments among them. ``robustness_runs``: run (or resume) the Monte Carlo
-    of emasim.experiments.robustness with that many runs per controller set, and the wear
-    study (emasim.experiments.wear): refused unless both bench experiments are chosen
-    (:func:`check_robustness`); without it, the report shows the largest complete ones of
-    these experiments and version, if any. ``robustness_seed``: the seed of the Monte
-    Carlo's draws (each seed its own study, run or shown).
+    of emasim.experiments.robustness with that many runs per controller set, the wear study
+    (emasim.experiments.wear) and the verdict map (emasim.experiments.verdict_map): refused
+    unless both bench experiments are chosen (:func:`check_robustness`); without it, the
+    report shows the latest complete ones of these experiments and version, if any (the
+    largest Monte Carlo of that seed). ``robustness_seed``: the seed of the Monte Carlo's
+    draws (each seed its own study, run or shown).
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
@@ -196,9 +203,11 @@ def reproduce(
                 robustness_runs, progress=_counted(progress), seed=robustness_seed
             )
             tables["wear"] = wear.run_wear()
+            tables["verdict_map"] = verdict_map.run_verdict_map(progress=_counted(progress))
         else:
             tables["robustness"], tables["wear"] = latest(seed=robustness_seed), wear.latest()
-        for key in ("robustness", "wear"):
+            tables["verdict_map"] = verdict_map.latest()
+        for key in ("robustness", "wear", "verdict_map"):
             if not tables[key]:
                 del tables[key]
 

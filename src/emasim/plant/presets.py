@@ -298,6 +298,19 @@ def ttl_rudder_encoder() -> SensorChannel:
     )
 
 
+ABSOLUTE_ENCODER_BITS = 20  # absolute_rudder_encoder's single-turn resolution
+
+
+def absolute_rudder_encoder() -> SensorChannel:
+    """A 20-bit absolute rotary encoder on the rudder, the verdict map's alternative to the
+    paper's TTL encoder (emasim.experiments.verdict_map): 2^20 counts a revolution (1.24" a
+    count), no accuracy error. Not the paper's: it stands for a near-ideal reading (emasim's
+    rudder encoder before the bench's was modelled had this resolution), so that the map's
+    encoder axis shows what the TTL encoder's coarse count and accuracy error do to each
+    verdict. Its own accuracy class is left out, on purpose."""
+    return SensorChannel(resolution=2.0 * math.pi / 2**ABSOLUTE_ENCODER_BITS)
+
+
 def bench_sensors() -> SensorParams:
     """The paper's test-bench sensors (section 3), as quantisation, accuracy error and noise.
 
