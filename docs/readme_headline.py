@@ -73,15 +73,30 @@ def win_rate(verdict: dict | None) -> str:
     return f"{100 * verdict['win_rate']:.0f} % [{low:.0f}, {high:.0f}]"
 
 
-def render(headline: dict, verdicts: dict | None = None) -> str:
+def map_wins(vmap: dict | None, key: str) -> str:
+    """'10 / 10 of 24': the verdict map's cells the hybrid wins against PID and against the
+    industrial PID on one headline figure, '-' without a map."""
+    entry = (vmap or {}).get("figures", {}).get(key)
+    if not entry:
+        return "-"
+    counts = [
+        sum(c["margin_pct"] is not None and c["margin_pct"] > 0 for c in entry["against"][label])
+        for label in ("PID", INDUSTRIAL)
+    ]
+    return f"{counts[0]} / {counts[1]} of {len(entry['against']['PID'])}"
+
+
+def render(headline: dict, verdicts: dict | None = None, vmap: dict | None = None) -> str:
     """The README's table of the headline object of tables.json: the paper's figures, ours as
     the bench measures them against both PID variants, the true angle's beside them and, with
-    a robustness study (``verdicts``), the hybrid's win rate against each variant."""
+    a robustness study (``verdicts``), the hybrid's win rate against each variant, and with a
+    verdict map (``vmap``) the cells of it the hybrid wins against each."""
     lines = [
         "| headline figure (abstract) | paper: PID → hybrid | ours, measured: PID → hybrid "
         f"| ours, measured: {INDUSTRIAL} → hybrid | true angle: PID → hybrid "
-        f"| hybrid better than PID / {INDUSTRIAL}, share of plants [95 % interval] |",
-        "|---|---|---|---|---|---|",
+        f"| hybrid better than PID / {INDUSTRIAL}, share of plants [95 % interval] "
+        "| cells of the verdict map it wins, against PID / the industrial PID |",
+        "|---|---|---|---|---|---|---|",
     ]
     for key, words in NAMES.items():
         h = headline[key]
@@ -98,7 +113,8 @@ def render(headline: dict, verdicts: dict | None = None) -> str:
         true = pair(h.get("true_pid"), h.get("true_hybrid"), h["unit"], h.get("true_reduction"))
         against = (verdicts or {}).get(key, {}).get("against", {})
         rates = f"{win_rate(against.get('PID'))} / {win_rate(against.get(INDUSTRIAL))}"
-        lines.append(f"| {words} | {paper}) | {ours} | {industrial} | {true} | {rates} |")
+        cells = map_wins(vmap, key)
+        lines.append(f"| {words} | {paper}) | {ours} | {industrial} | {true} | {rates} | {cells} |")
     return "\n".join([*lines, "", verdict_line(headline, verdicts)])
 
 
@@ -221,7 +237,7 @@ def block_of(text: str, name: str) -> str:
 def write_readme(headline: dict, verdicts: dict, vmap: dict) -> None:
     text = README.read_text()
     blocks = {
-        "headline": render(headline, verdicts),
+        "headline": render(headline, verdicts, vmap),
         "robustness": render_robustness(verdicts, headline),
         "verdict-map": render_verdict_map(vmap),
     }

@@ -73,7 +73,8 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     stored = json.loads(module.STORE.read_text())
     readme = (ROOT / "README.md").read_text()
     robust = json.loads(module.ROBUSTNESS.read_text())
-    assert module.block_of(readme, "headline") == module.render(stored, robust)
+    vmap = json.loads(module.VERDICT_MAP.read_text())
+    assert module.block_of(readme, "headline") == module.render(stored, robust, vmap)
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
@@ -104,7 +105,15 @@ def test_the_readme_gives_the_hybrid_against_each_pid_variant_with_its_win_rates
     (row,) = [line for line in table if line.startswith("| sine speed fluctuation |")]
     hybrid = module.number(stored[key]["ours_hybrid"])
     assert f"| 0.5 → {hybrid} deg/s (−25 %) |" in row
-    assert row.endswith("| 90 % [85, 94] / 30 % [24, 37] |")
+    assert row.endswith("| 90 % [85, 94] / 30 % [24, 37] | - |")  # no verdict map given
+    cells = [{"margin_pct": m} for m in (5.0, -1.0, None, 0.0)]
+    vmap = {"figures": {key: {"against": {"PID": cells, module.INDUSTRIAL: cells[:1] * 4}}}}
+    (row,) = [
+        line
+        for line in module.render(stored, verdicts, vmap).splitlines()
+        if line.startswith("| sine speed fluctuation |")
+    ]
+    assert row.endswith("| 90 % [85, 94] / 30 % [24, 37] | 1 / 4 of 4 |")
     assert len(table) == 2 + len(module.NAMES) + 2
 
 
