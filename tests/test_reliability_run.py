@@ -266,18 +266,56 @@ SOLVER_SETTINGS = {
 }
 
 
-def test_run_honours_every_solver_setting(tmp_path):
+def outcome(command: str, out: Path, *settings: str):
+    """What ``command`` on cosim-step (PID, 0.02 s) made with ``settings``, to compare: the
+    trace of ``run``, the kept trace of the one ``study`` run, and the tuned scenario's
+    ``solver`` table and its one trial's (chattering, tracking) for ``tune``."""
+    import tomllib
+
     import pandas as pd
 
-    def traces(name, *settings):
-        out = tmp_path / name
-        args = ["run", "cosim-step", "--label", "PID", "--set", "duration_s=0.02", "--no-plot"]
-        result = invoke(*args, *settings, "--out", str(out))
-        assert result.exit_code == 0, result.output
-        return pd.read_parquet(out / "result.parquet")
+    fixed = ["--set", "duration_s=0.02", *settings]
+    if command == "run":
+        args = ["run", "cosim-step", "--label", "PID", "--no-plot", "--out", str(out), *fixed]
+    elif command == "study":
+        args = [*command_line("study", "cosim-step", out), "--label", "PID", "--traces", *fixed]
+    else:
+        args = [*command_line("tune", "cosim-step", out), "--controller", "pid", *fixed]
+        args += ["--storage", f"sqlite:///{out.parent / (out.name + '.db')}"]
+    result = invoke(*args)
+    assert result.exit_code == 0, result.output
+    if command == "tune":
+        tuned = tomllib.loads((out / "tuned.toml").read_text())
+        point = next(iter(tuned["tuning"]["sets"].values()))["tuned_point"]
+        return tuned.get("solver", {}), point
+    trace = out / "result.parquet" if command == "run" else next(out.glob("runs/*/result.parquet"))
+    return pd.read_parquet(trace)
 
-    base = traces("base")
+
+def same(a, b) -> bool:
+    if isinstance(a, tuple):
+        return a == b
+    return a.shape == b.shape and bool((a.values == b.values).all())
+
+
+@pytest.mark.parametrize("command", ["run", "study", "tune"])
+def test_every_command_honours_every_solver_setting(tmp_path, command):
+    """Each solver setting changes what the command makes (acceptance refuses those its
+    battery cannot honour, above; reproduce takes no scenario). tune keeps no trace: it
+    carries record_signals into the tuned scenario, and every other setting changes its
+    trials' cost (the co-simulation's included: its trials co-simulate)."""
+    base = outcome(command, tmp_path / "base")
     for name, setting in SOLVER_SETTINGS.items():
-        changed = traces(name, "--set", setting)
-        same = changed.shape == base.shape and bool((changed.values == base.values).all())
-        assert not same, f"{setting} did not change the run"
+        changed = outcome(command, tmp_path / name, "--set", setting)
+        if command == "tune" and name == "record_signals":
+            assert changed[0]["record_signals"] == ["iq_A"] and changed[1] == base[1]
+        else:
+            assert not same(changed, base), f"{command}: {setting} did not change its result"
+
+
+def test_tune_refuses_an_fmu_mechanism_without_offering_an_option_it_lacks(tmp_path):
+    """tune has no --trust-fmu: its refusal says what to do instead."""
+    (tmp_path / "mech.fmu").write_bytes(b"PK\x05\x06" + bytes(18))
+    settings = [s.replace("mech.fmu", str(tmp_path / "mech.fmu")) for s in FMU]
+    line = one_error_line(invoke(*command_line("tune", "cosim-step", tmp_path / "o"), *settings))
+    assert "tune does not load an FMU" in line and "emasim run --trust-fmu" in line

@@ -268,12 +268,12 @@ class _LazyProgress:
             self.bar.stop()
 
 
-def _print_warnings(by_label: dict[str, dict]) -> None:
-    """A warning line for each stop a run touched (emasim.analysis.report.run_warnings)."""
-    from .analysis.report import run_warnings
-
-    for label, metrics in by_label.items():
-        for line in run_warnings(metrics):
+def _print_warnings(result) -> None:
+    """The warning lines of each run (its meta.json's ``warnings``: each stop it touched and
+    each physical limit it crossed, emasim.experiments.runs)."""
+    records = getattr(result, "results", None) or {result.meta["label"]: result}
+    for label, record in records.items():
+        for line in record.meta.get("warnings", []):
             log.warning(f"{label}: {line}")
 
 
@@ -371,7 +371,7 @@ def run(
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")
-    _print_warnings(by_label)
+    _print_warnings(result)
     if label or controller:
         origin = sc.tuning.get("gains_from")
         log.info(
@@ -455,8 +455,14 @@ def tune(
         read_scenario_text,
         validate_scenario,
     )
-    from .sim.cosim import check_runnable
-    from .tuning import default_storage, is_tuned_scenario, open_storage, tune_scenario, tuned_toml
+    from .tuning import (
+        check_tunable,
+        default_storage,
+        is_tuned_scenario,
+        open_storage,
+        tune_scenario,
+        tuned_toml,
+    )
 
     budget = Budget(trials, trials_per_knob, patience_per_knob or None, tolerance, widen)
 
@@ -470,7 +476,7 @@ def tune(
         for item in setting or []:
             apply_setting(raw, item)
         sc = validate_scenario(raw, source)
-        check_runnable(sc, trust_fmu=False)
+        check_tunable(sc)
         if scheduler is not None:
             check_scheduler(scheduler)  # before the storage is made
         root = RUNS_ROOT / "tune"

@@ -47,8 +47,9 @@ import optuna
 from .analysis.pareto import pareto_front, thinned
 from .analysis.report import CHECK_TOLERANCE, COST_FORMULA, tuning_terms, weighted_cost
 from .errors import InputError, SimulationDiverged
+from .experiments.runs import simulate_scenario
 from .search_rules import Budget, bound_side, converged, hard_limits, widened
-from .sim.engine import simulate
+from .sim.cosim import check_runnable
 
 DIVERGED_COST = 1e3
 LOOPS = ("position", "speed")
@@ -266,6 +267,18 @@ class Tuned:
         return out
 
 
+def check_tunable(scenario) -> None:
+    """Every rule a tune of ``scenario`` checks before its first trial: a run's
+    (:func:`emasim.sim.cosim.check_runnable`), and no FMU mechanism: a search runs the
+    scenario thousands of times, and an FMU's code runs in every one. InputError names it."""
+    if scenario.solver.mechanism_fmu is not None:
+        raise InputError(
+            "solver.mechanism_fmu: tune does not load an FMU (every trial would run its code); "
+            "tune with the built-in mechanism, then run the FMU with `emasim run --trust-fmu`"
+        )
+    check_runnable(scenario, trust_fmu=False)
+
+
 def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
     """The tuning cost of one candidate (a single-run scenario) and its two terms (tracking,
     chattering: emasim.analysis.report.tuning_terms); DIVERGED_COST and NaN terms if it
@@ -273,7 +286,7 @@ def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
-            result = simulate(scenario.setup())
+            result = simulate_scenario(scenario)  # a co-simulation where one is set
     except SimulationDiverged:
         return DIVERGED_COST, math.nan, math.nan
     result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})

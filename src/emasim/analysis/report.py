@@ -42,7 +42,9 @@ angle, as a step or a sine. Every window and band is stated here, once:
 Every run also reports the time the drive spent at each of its limits (current, voltage,
 speed: the limit_flags the engine records at each recorded row, times the recording period)
 and, on a plant with end stops, the time in contact with the rod's and the rudder's stops and
-the largest stop force; :func:`run_warnings` turns a stop contact into a warning line; and
+the largest stop force; :func:`run_warnings` turns a stop contact into a warning line, and
+:func:`limits_crossed` finds the physical limits it went past (motor speed, current, and the
+rod's stroke on a plant without stops), each a warning line (:func:`limit_warnings`); and
 ``tuning_cost``, the cost every controller set was tuned for (:func:`tuning_cost`).
 """
 
@@ -287,6 +289,71 @@ def run_warnings(metrics: dict) -> list[str]:
                 "the command or an overshoot leaves the travel"
             )
     return lines
+
+
+LIMIT_TOLERANCE = 1e-3  # beyond a limit by more than 0.1 %: above a float's rounding, not a choice
+
+
+def limits_crossed(result) -> dict:
+    """Each physical limit the run went past, name -> {``peak``, ``peak_s`` (when), ``limit``
+    (there), ``unit``, ``first_s`` (when it first went past), ``what``}:
+
+    * ``motor_speed``: |motor speed| above the drive's max_speed_rpm. The drive holds every
+      speed command within it, so a crossing is the load or an overshoot driving the motor
+      past it (a back-driven overspeed is physical; the drive would trip);
+    * ``current``: |iq| above the current limit in force (``current_limit_A``: max_current_A,
+      or the rated limit). Every current command is held within it, so a crossing is the
+      current the inverter's voltage could not hold to its command (a back-EMF near or above
+      what the bus can oppose, or a load faster than the current loop);
+    * ``rod_stroke``: on a plant without end stops, the rod beyond half its stroke from mid
+      stroke (a real actuator would have hit its stops; with stops, :func:`run_warnings`
+      reports the contact).
+    """
+    plant = result.scenario["plant"]
+    checks = []
+    if "motor_speed_rad_s" in result.columns:
+        speed = np.abs(result["motor_speed_rad_s"]) * RPM_PER_RAD_S
+        limit = plant["motor"]["max_speed_rpm"]
+        checks.append(("motor_speed", speed, limit, "rpm", "the motor's speed"))
+    if "iq_A" in result.columns and "current_limit_A" in result.columns:
+        current = np.abs(result["iq_A"])
+        limit = result["current_limit_A"]
+        checks.append(("current", current, limit, "A", "the q-axis current"))
+    if "end_stops" not in plant and "actuator_position_m" in result.columns:
+        travel = np.abs(result["actuator_position_m"]) * 1e3
+        half = 0.5 * plant["drivetrain"]["stroke_mm"]
+        checks.append(("rod_stroke", travel, half, "mm", "the rod's travel from mid stroke"))
+    out = {}
+    for name, value, limit, unit, what in checks:
+        over = np.flatnonzero(value > np.asarray(limit) * (1.0 + LIMIT_TOLERANCE))
+        if over.size:
+            at = int(over[np.argmax(value[over])])
+            out[name] = {
+                "peak": float(value[at]),
+                "peak_s": float(result.t[at]),
+                "limit": float(np.broadcast_to(limit, value.shape)[at]),
+                "unit": unit,
+                "first_s": float(result.t[over[0]]),
+                "what": what,
+            }
+    return out
+
+
+LIMIT_CAUSES = {
+    "motor_speed": "driven past the drive's speed limit (the load, or an overshoot)",
+    "current": "the inverter's voltage could not hold it to its command",
+    "rod_stroke": "the plant has no end stops; a real actuator would have hit them",
+}
+
+
+def limit_warnings(limits: dict) -> list[str]:
+    """One line for each limit of :func:`limits_crossed`."""
+    return [
+        f"{entry['what']} reached {entry['peak']:.4g} {entry['unit']} at "
+        f"{entry['peak_s']:.4g} s, beyond its {entry['limit']:.4g} {entry['unit']} limit "
+        f"(first past it at {entry['first_s']:.4g} s): {LIMIT_CAUSES[name]}"
+        for name, entry in limits.items()
+    ]
 
 
 def _load_window(result) -> tuple[float | None, float]:

@@ -13,7 +13,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .. import __version__
-from ..analysis.report import ANALYSIS_COLUMNS, run_metrics, run_warnings, undefined_metrics
+from ..analysis.report import (
+    ANALYSIS_COLUMNS,
+    limit_warnings,
+    limits_crossed,
+    run_metrics,
+    run_warnings,
+    undefined_metrics,
+)
 from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
@@ -78,6 +85,22 @@ def source_commit() -> dict:
     return {"git_commit": commit, "git_dirty": dirty}
 
 
+def simulate_scenario(
+    scenario: "Scenario", trust_fmu: bool = False, setup: "Setup | None" = None, progress=None
+) -> Result:
+    """The bare simulation of a scenario, every solver setting honoured: a co-simulation where
+    ``solver.communication_step_s`` is set (unless ``setup`` replaces the scenario's own
+    Setup), else the compiled engine, recording ``solver.record_signals`` and what the metrics
+    read (ANALYSIS_COLUMNS). Both :func:`run_scenario` and the tuning's trials run this."""
+    check_fmu_trust(scenario, trust_fmu)
+    if scenario.solver.communication_step_s is not None and setup is None:
+        return cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
+    run = scenario.setup() if setup is None else setup
+    if run.record_signals is not None:  # and what the metrics and plots read
+        run = run.with_(record_signals=(*run.record_signals, *ANALYSIS_COLUMNS))
+    return simulate(run, progress=progress)
+
+
 def run_scenario(
     scenario: "Scenario",
     progress: Callable[[float], None] | None = None,
@@ -96,15 +119,8 @@ def run_scenario(
     metadata then names the replaced slots' laws (``custom_laws``), which the saved
     scenario.toml cannot hold.
     """
-    check_fmu_trust(scenario, trust_fmu)
     given = setup is not None
-    if scenario.solver.communication_step_s is not None and not given:
-        result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
-    else:
-        run = setup if given else scenario.setup()
-        if run.record_signals is not None:  # and what the metrics and plots read
-            run = run.with_(record_signals=(*run.record_signals, *ANALYSIS_COLUMNS))
-        result = simulate(run, progress=progress)
+    result = simulate_scenario(scenario, trust_fmu, setup, progress)
     # the run that was made: a comparison's other sets are not part of it
     result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
@@ -130,7 +146,10 @@ def run_scenario(
     undefined = undefined_metrics(result.metrics)
     if undefined:
         result.meta["undefined_metrics"] = undefined
-    warnings = run_warnings(result.metrics)
+    limits = limits_crossed(result)
+    if limits:
+        result.meta["limits"] = limits
+    warnings = run_warnings(result.metrics) + limit_warnings(limits)
     if warnings:
         result.meta["warnings"] = warnings
     return result
