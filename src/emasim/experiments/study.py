@@ -510,6 +510,21 @@ def read_table(folder: str | Path):
     return pd.read_parquet(Path(folder) / METRICS_FILE)
 
 
+def complete_tables(folders: dict, rows: int) -> dict | None:
+    """key -> the table (:func:`read_table`) of each study folder of ``folders`` (key ->
+    folder), or None when any is missing, unreadable or not yet ``rows`` rows long."""
+    tables = {}
+    for key, folder in folders.items():
+        try:
+            table = read_table(folder)
+        except (OSError, ValueError):
+            return None
+        if len(table) != rows:
+            return None
+        tables[key] = table
+    return tables
+
+
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 
 

@@ -24,7 +24,7 @@ import math
 from ..analysis.paper_report import HYBRID_LABEL
 from ..plant.presets import LOADER_RATED_TORQUE_NM, absolute_rudder_encoder, ttl_rudder_encoder
 from .robustness import BASELINES, ROOT, SCENARIOS, figures, study_key
-from .study import OK, StudySpec, read_table, run_study
+from .study import OK, StudySpec, complete_tables, run_study
 
 PRELOAD = "plant.load_motor.preload_Nm"
 CLEARANCE = "plant.linkage.hinge_clearance_mm"
@@ -89,16 +89,9 @@ def run_verdict_map(root=ROOT, progress=None, client=None, scheduler=None) -> di
 
 def latest(root=ROOT) -> dict | None:
     """The map of complete grid studies of today's experiments and version, or None."""
-    tables = {}
-    for scenario in SCENARIOS:
-        try:
-            table = read_table(study_folder(scenario, root))
-        except (OSError, ValueError):
-            return None
-        if len(table) != len(LABELS) * cells():
-            return None
-        tables[scenario] = table
-    return verdict_map(tables)
+    folders = {scenario: study_folder(scenario, root) for scenario in SCENARIOS}
+    tables = complete_tables(folders, rows=len(LABELS) * cells())
+    return None if tables is None else verdict_map(tables)
 
 
 def _cell_of(row) -> dict:

@@ -11,7 +11,7 @@ experiment runs at every level with PID and with the hybrid (a study, :mod:`.stu
 
 from ..analysis.paper_report import HYBRID_LABEL, PID_LABEL
 from .robustness import ROOT, SCENARIOS, figures, study_key
-from .study import StudySpec, read_table, run_study
+from .study import StudySpec, complete_tables, run_study
 
 LEVELS = 5
 WEAR_KEYS = (
@@ -47,16 +47,9 @@ def run_wear(root=ROOT, client=None, scheduler=None) -> dict:
 
 def latest(root=ROOT) -> dict | None:
     """The degradation of a complete wear study of today's experiments and version, or None."""
-    tables = {}
-    for scenario in SCENARIOS:
-        try:
-            table = read_table(study_folder(scenario, root))
-        except (OSError, ValueError):
-            return None
-        if len(table) != 2 * LEVELS:
-            return None
-        tables[scenario] = table
-    return degradation(tables)
+    folders = {scenario: study_folder(scenario, root) for scenario in SCENARIOS}
+    tables = complete_tables(folders, rows=2 * LEVELS)
+    return None if tables is None else degradation(tables)
 
 
 def degradation(tables: dict) -> dict:
