@@ -19,7 +19,7 @@ from emasim.scenarios.loader import load_scenario
 from emasim.scenarios.schema import Load
 from emasim.signals import Constant
 from emasim.sim import engine
-from emasim.sim.diagnosis import likely_cause
+from emasim.sim.diagnosis import fastest_modes, likely_cause
 from emasim.sim.engine import simulate
 from emasim.sim.reference import simulate_reference
 
@@ -127,6 +127,25 @@ def test_divergence_names_time_state_and_the_stiffness_the_step_is_too_large_for
     message = str(err.value)
     assert "t = " in message and "too large for the backlash contact stiffness" in message
     assert any(name in message for name in STATE_NAMES)
+
+
+@pytest.mark.parametrize(("step_s", "diverges"), [(2e-6, False), (5e-6, True)])
+def test_the_screws_compliance_mode_and_its_step_limit_are_the_engines(step_s, diverges):
+    """A screw 1e4 times stiffer than the bench's: its mode between the compliance's node and
+    the rod, sqrt(k_s (1/m_n + 1/m_L)), is 1.15e6 rad/s, so RK4 needs h < 2.45e-6 s. The
+    engine holds just below that step and diverges at twice it, and the message names the
+    compliance (the diagnosis once listed only the backlash, against the load's mass)."""
+    stiff = "plant.compliance.stiffness_N_per_m=1e12"
+    scenario = load_scenario(
+        "bench-step", label="PID", settings=["duration_s=0.01", stiff, f"solver.step_s={step_s}"]
+    )
+    modes = {name: h_max for name, _, h_max in fastest_modes(scenario.setup().plant)}
+    assert 2e-6 < modes["the screw's compliance"] < 5e-6
+    if not diverges:
+        simulate(scenario.setup())
+        return
+    with pytest.raises(SimulationDiverged, match="too large for the screw's compliance"):
+        simulate(scenario.setup())
 
 
 def test_divergence_under_an_overhauling_load_names_the_load():

@@ -5,10 +5,13 @@ The checks, in order:
 1. **A mode too fast for the sub-step.** Classic RK4 is stable on an undamped oscillator only
    while omega h < 2 sqrt(2) (about 2.83) and on a decaying mode while lambda h < 2.78. The
    plant's fastest modes are the backlash contact, omega = sqrt(K_b / m_r) with m_r the
-   reduced mass of the motor (J / K^2 at the nut) and the load; the bristles of the LuGre
-   friction, omega = sqrt(sigma0 / J); the stator, lambda = R / min(Ld, Lq); and, when the
-   plant has them, the rod's end stops on the rod, sqrt(k / m_rod), the anchorage,
-   sqrt(k_a / m_h), the rudder shaft, sqrt(k_t / J_d), and the load motor's torque loop, 1/tau.
+   reduced mass of the motor (J / K^2 at the nut) and what lies beyond the gap (the
+   compliance's node m_n where the plant has one, else the load: the masses the contact
+   couples in the right-hand side); the bristles of the LuGre friction,
+   omega = sqrt(sigma0 / J); the stator, lambda = R / min(Ld, Lq); and, when the plant has
+   them, the screw's compliance between its node and the load, sqrt(k_s (1/m_n + 1/m_L)),
+   the rod's end stops on the rod, sqrt(k / m_rod), the anchorage, sqrt(k_a / m_h), the
+   rudder shaft, sqrt(k_t / J_d), and the load motor's torque loop, 1/tau.
 2. **A load beyond the drive.** The peak external load seen at the rod (rod force, motor
    torque / K, rudder torque through the linkage's lever at mid stroke or the lumped arm)
    against the stall force of the drive,
@@ -34,13 +37,21 @@ SAFE_FRACTION = 0.5  # suggest a step with this margin below the limit
 LOAD_SAMPLES = 2001
 
 
+def _two_body_rate(stiffness: float, m1: float, m2: float) -> float:
+    """omega = sqrt(k (1/m1 + 1/m2)) (rad/s): two masses on a spring, each free."""
+    return math.sqrt(stiffness * (1.0 / m1 + 1.0 / m2))
+
+
 def fastest_modes(plant: np.ndarray) -> list[tuple[str, float, float]]:
     """(element, rate in rad/s or 1/s, the largest stable h) of the plant's stiff modes."""
-    k = plant[A.P_K]
-    motor_mass = plant[A.P_J] / k**2
-    reduced = motor_mass * plant[A.P_ML] / (motor_mass + plant[A.P_ML])
-    omega_backlash = math.sqrt(plant[A.P_KB] / reduced)
+    motor_mass = plant[A.P_J] / plant[A.P_K] ** 2
+    compliant = plant[A.P_COMPLIANCE] != 0.0
+    beyond_gap = plant[A.P_MN] if compliant else plant[A.P_ML]
+    omega_backlash = _two_body_rate(plant[A.P_KB], motor_mass, beyond_gap)
     modes = [("the backlash contact stiffness", omega_backlash, RK4_OSCILLATOR_LIMIT)]
+    if compliant:
+        omega_screw = _two_body_rate(plant[A.P_KS], plant[A.P_MN], plant[A.P_ML])
+        modes.append(("the screw's compliance", omega_screw, RK4_OSCILLATOR_LIMIT))
     if plant[A.P_FRICTION] == A.FRICTION_LUGRE:
         omega_bristle = math.sqrt(plant[A.P_SIGMA0] / plant[A.P_J])
         modes.append(("the LuGre bristle stiffness", omega_bristle, RK4_OSCILLATOR_LIMIT))
