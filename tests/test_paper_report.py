@@ -104,3 +104,23 @@ def test_the_gains_sentence_states_each_sets_search():
     old = {"method": "optuna TPE", "trials_per_controller_set": 60, "cost": "J"}
     assert "60 trials per controller set" in pr.tuning_sentence(old)
     assert pr.tuning_sentence({}) == "the scenario's defaults (not tuned)."
+    at_limit = {"hybrid": {"position.adaptation_gain": "why it stops there"}}
+    named = pr.tuning_sentence(record, at_limit)
+    assert "adaptation_gain**, the law's own limit (why it stops there)" in named
+
+
+def test_an_optimum_on_its_laws_own_limit_is_found_and_named_with_its_reason():
+    """speed-step's ST-SMC ends with mu on the super-twisting's 0 < mu < 1 (the paper's rule),
+    a bound no widening can move; a bound the search could still widen is not such a limit."""
+    from emasim.experiments.reproduction import bounds_at_limit
+    from emasim.scenarios.loader import load_scenario
+
+    found = bounds_at_limit(load_scenario("speed-step"))
+    assert list(found) == ["ST-SMC"]
+    assert "0 < mu < 1" in found["ST-SMC"]["speed.boundary_layer_rad_s"]
+    # the same optimum on the unwidened search range (0.05, 0.95): widenable, not a limit
+    scenario = load_scenario("speed-step")
+    record = scenario.tuning["sets"]["ST-SMC"]
+    record.widened.clear()
+    assert bounds_at_limit(scenario) == {}
+    assert all(bounds_at_limit(load_scenario(name)) == {} for name in ("bench-step", "bench-sine"))

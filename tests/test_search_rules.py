@@ -4,6 +4,7 @@ import math
 
 import pytest
 
+from emasim.config import hard_limits
 from emasim.control.pid import PositionPID, SpeedPI
 from emasim.search_rules import (
     BOUND_MARGIN,
@@ -11,7 +12,6 @@ from emasim.search_rules import (
     Budget,
     bound_side,
     converged,
-    hard_limits,
     widened,
 )
 

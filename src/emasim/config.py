@@ -31,3 +31,13 @@ def numbers(count: int, **bounds):
     le, lt), given in TOML as an array (the tuple itself accepts a list)."""
     element = Annotated[float, StrictType(), Field(**bounds)]
     return Annotated[tuple[(element,) * count], Field(strict=False)]
+
+
+def hard_limits(config, field: str) -> tuple[float, float]:
+    """The open interval a config field's validation admits (its gt/ge and lt/le), as
+    (lower, upper); a log search needs lower > 0."""
+    low, high = 0.0, math.inf
+    for rule in type(config).model_fields[field].metadata:
+        low = max(low, getattr(rule, "gt", None) or getattr(rule, "ge", None) or low)
+        high = min(high, getattr(rule, "lt", None) or getattr(rule, "le", None) or high)
+    return low, high

@@ -11,9 +11,9 @@ favours the one with fewer knobs. :class:`Budget` gives each set
 
 An optimum that sits on a bound of its search range (:func:`bound_side`: within BOUND_MARGIN
 of the range's log width) says the range was too narrow. The range is widened on that side by
-WIDEN_FACTOR, as far as the config's own validation allows (:func:`hard_limits`), and the
-search goes on for another round under the same rule, at most ``widenings`` times. An optimum
-still on a bound after that is reported.
+WIDEN_FACTOR, as far as the config's own validation allows
+(:func:`emasim.config.hard_limits`), and the search goes on for another round under the same
+rule, at most ``widenings`` times. An optimum still on a bound after that is reported.
 """
 
 import math
@@ -92,16 +92,6 @@ def bound_side(value: float, low: float, high: float) -> str | None:
     if where >= 1.0 - BOUND_MARGIN:
         return "upper"
     return None
-
-
-def hard_limits(config, field: str) -> tuple[float, float]:
-    """The open interval a config field's validation admits (its gt/ge and lt/le), as
-    (lower, upper); a log search needs lower > 0."""
-    low, high = 0.0, math.inf
-    for rule in type(config).model_fields[field].metadata:
-        low = max(low, getattr(rule, "gt", None) or getattr(rule, "ge", None) or low)
-        high = min(high, getattr(rule, "lt", None) or getattr(rule, "le", None) or high)
-    return low, high
 
 
 def widened(low: float, high: float, side: str, limits: tuple[float, float]):

@@ -46,9 +46,10 @@ import optuna
 
 from .analysis.pareto import pareto_front, thinned
 from .analysis.report import CHECK_TOLERANCE, COST_FORMULA, tuning_terms, weighted_cost
+from .config import hard_limits
 from .errors import InputError, SimulationDiverged
 from .experiments.runs import simulate_scenario
-from .search_rules import Budget, bound_side, converged, hard_limits, widened
+from .search_rules import Budget, bound_side, converged, widened
 from .sim.cosim import check_runnable
 
 DIVERGED_COST = 1e3

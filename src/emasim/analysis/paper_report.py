@@ -636,7 +636,7 @@ def pareto_markdown(tuning: dict | None) -> list[str]:
     ]
 
 
-def tuning_sentence(tuning: dict | None) -> str:
+def tuning_sentence(tuning: dict | None, at_limit: dict | None = None) -> str:
     """How an experiment's gains were obtained, from its scenario's ``[tuning]`` record: the
     rule, and per controller set the trials it used, why it stopped, the ranges widened and
     any optimum still on a bound, and the check of its neighbourhood (a record of an older
@@ -655,8 +655,10 @@ def tuning_sentence(tuning: dict | None) -> str:
             f"; {key} widened to [{low:.4g}, {high:.4g}]"
             for key, (low, high) in record.get("widened", {}).items()
         )
+        limits = (at_limit or {}).get(label, {})
         text += "".join(
             f"; **optimum on the {side} bound of {key}**"
+            + (f", the law's own limit ({limits[key]})" if key in limits else "")
             for key, side in record.get("on_bound", {}).items()
         )
         check = record.get("neighbourhood")
@@ -683,11 +685,13 @@ def write_report(
     notes: str,
     stages: tuple = (),
     uncertainty: str = "",
+    at_limit: dict | None = None,
 ) -> None:
     """report.md, report.html and tables.json into ``folder``; ``stages`` names and describes
     the ablation's stages, when ``tables`` has an ablation; ``uncertainty`` the table
     (Markdown) of the robustness study's --vary specs, when ``tables`` has its verdicts
-    (``robustness``)."""
+    (``robustness``); ``at_limit`` scenario -> label -> {knob: why} for each optimum on a bound
+    that is its law's own limit (emasim.tuning.bounds_at_limit), named in the Gains line."""
     parts = [
         "# emasim reproduction of Ding & Zhou (2025)",
         f"emasim {__version__}. Hybrid = position RBF+SMC over speed super-twisting + GPIO; "
@@ -738,7 +742,8 @@ def write_report(
                 "hinge at the clearance shown):"
             )
             parts.append(_dict_rows_markdown(tables["clearance_sweep"]))
-        parts.append("Gains: " + tuning_sentence(sc.get("tuning")))
+        limits = (at_limit or {}).get(exp.scenario)
+        parts.append("Gains: " + tuning_sentence(sc.get("tuning"), limits))
         parts += pareto_markdown(sc.get("tuning"))
     if tables.get("wear"):
         parts += _wear_markdown(tables["wear"], figures.get("wear", []))

@@ -303,8 +303,9 @@ def limits_crossed(result) -> dict:
       past it (a back-driven overspeed is physical; the drive would trip);
     * ``current``: |iq| above the current limit in force (``current_limit_A``: max_current_A,
       or the rated limit). Every current command is held within it, so a crossing is the
-      current the inverter's voltage could not hold to its command (a back-EMF near or above
-      what the bus can oppose, or a load faster than the current loop);
+      current loop failing to hold the current to its command (a load faster than the loop,
+      or a back-EMF near or above what the bus can oppose); emasim models no overcurrent
+      trip, so it reports the crossing;
     * ``rod_stroke``: on a plant without end stops, the rod beyond half its stroke from mid
       stroke (a real actuator would have hit its stops; with stops, :func:`run_warnings`
       reports the contact).
@@ -341,7 +342,9 @@ def limits_crossed(result) -> dict:
 
 LIMIT_CAUSES = {
     "motor_speed": "driven past the drive's speed limit (the load, or an overshoot)",
-    "current": "the inverter's voltage could not hold it to its command",
+    "current": "its commands are held within the limit, but the current loop could not hold "
+    "the current to them (a load faster than the loop, or a back-EMF the bus cannot oppose); "
+    "a real drive's overcurrent protection would trip",
     "rod_stroke": "the plant has no end stops; a real actuator would have hit them",
 }
 

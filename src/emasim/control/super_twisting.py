@@ -106,7 +106,13 @@ class SpeedSuperTwisting(ControllerConfig):
     )
     beta: float | None = Field(default=None, gt=0, le=1e6, description="A/(rad/s)^0.5; overrides L")
     k_A_per_s: float | None = Field(default=None, gt=0, le=1e9, description="overrides L")
-    boundary_layer_rad_s: float = Field(default=0.5, gt=0, lt=1, description="mu (improved)")
+    boundary_layer_rad_s: float = Field(
+        default=0.5,
+        gt=0,
+        lt=1,
+        description="mu (improved): the boundary layer, 0 < mu < 1 as the paper sets it "
+        "(the text of its eq. 36)",
+    )
     exponent: float = Field(default=0.6, gt=0, le=1, description="alpha (improved), 1 = continuous")
     observer_bandwidth_Hz: float = Field(default=150.0, gt=0, le=1e4, description="GPIO wo/(2 pi)")
     acceleration_feedforward: bool = Field(default=False, description="add dw_ref/dt / b")

@@ -4,6 +4,7 @@ clearance sweep, the ablation of the bench's elements and the hybrid part by par
 the verdict map (emasim.experiments.verdict_map) too, else their latest studies; rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
+import math
 import time
 from functools import partial
 from pathlib import Path
@@ -20,6 +21,7 @@ from ..analysis.paper_report import (
     notes,
     write_report,
 )
+from ..config import hard_limits
 from ..errors import InputError
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
@@ -158,6 +160,28 @@ def check_robustness(only: list[str] | None) -> None:
         )
 
 
+def bounds_at_limit(scenario) -> dict[str, dict[str, str]]:
+    """label -> {knob: why} for each tuned set of ``scenario`` whose optimum its ``[tuning]``
+    record leaves on a bound that is the law's own limit (the config's validation,
+    :func:`hard_limits`): such a bound cannot widen, and the field's description says why it
+    is there (a design rule of the law, such as the super-twisting's 0 < mu < 1)."""
+    sets = scenario.tuning.get("sets", {})
+    out: dict[str, dict[str, str]] = {}
+    for label, variant in scenario.variants():
+        if label not in sets:
+            continue
+        record = sets[label]
+        for key, side in record.on_bound.items():
+            loop, field = key.split(".", 1)
+            config = getattr(variant.controllers, loop)
+            span = record.widened.get(key) or config.tunable_ranges()[field]
+            end = 0 if side == "lower" else 1
+            if math.isclose(span[end], hard_limits(config, field)[end], rel_tol=1e-9):
+                why = type(config).model_fields[field].description
+                out.setdefault(label, {})[key] = why
+    return out
+
+
 def _counted(progress):
     """A ``progress(done, total)`` for a progress that takes a fraction (or None)."""
     return None if progress is None else (lambda done, total: progress(done / total))
@@ -230,6 +254,7 @@ def reproduce(
                 notes(),
                 stages=STAGES,
                 uncertainty=uncertainty_table(UNCERTAINTY),
+                at_limit={name: bounds_at_limit(sc) for name, sc in chosen.items()},
             )
             here = DrawHere()
             for draw, path in later:
