@@ -158,7 +158,10 @@ def sensitivity(table, metric: str, baseline: str = PID_LABEL) -> dict:
     for name in COLUMNS:
         if name == SEED or name not in mine or usable.sum() < 3:
             continue
-        rho = float(spearmanr(mine[name].to_numpy()[usable], gain[usable]).statistic)
+        values = mine[name].to_numpy()[usable]
+        if np.ptp(values) == 0.0 or np.ptp(gain[usable]) == 0.0:
+            continue  # a constant has no rank correlation: it cannot be what the gain follows
+        rho = float(spearmanr(values, gain[usable]).statistic)
         if math.isfinite(rho) and abs(rho) > abs(best.get("spearman", 0.0)):
             best = {"parameter": name, "spearman": rho}
     return best
