@@ -10,7 +10,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 
 import pytest
 from typer.testing import CliRunner
@@ -25,7 +24,6 @@ from emasim.output import foreign_files
 
 SHORT = ("duration_s=0.04",)
 runner = CliRunner()
-REFUSED_WITHIN_S = 15  # not a speed check: "a few seconds", not the 50 s or the hang before
 
 
 @pytest.fixture(scope="module")
@@ -87,20 +85,19 @@ def test_a_listener_that_is_no_dask_scheduler_is_refused_in_one_line(
     tmp_path, monkeypatch, listener, command, kind
 ):
     monkeypatch.chdir(tmp_path)
-    if kind == "http":
-        monkeypatch.setattr(batch, "HANDSHAKE_TIMEOUT_S", 1.0)  # the silent case waits the 5 s
+    monkeypatch.setattr(batch, "HANDSHAKE_TIMEOUT_S", 1.0)  # what bounds the wait, not a clock
     address = listener(kind)
     args = {
         "study": ["study", "speed-step", "--label", "PI", "--out", "s", "--set", SHORT[0]],
         "tune": ["tune", "speed-step", "-c", "speed=pi", "--trials", "1", "--set", SHORT[0]],
     }[command]
-    start = time.monotonic()
     result = runner.invoke(app, [*args, "--scheduler", address])
-    assert time.monotonic() - start < REFUSED_WITHIN_S
     assert result.exit_code == 2, result.stderr
     said = lines(result.stderr)
     assert len(said) == 1, result.stderr
     assert said[0].startswith(f"error: --scheduler {address}: no Dask scheduler answers there")
+    if kind == "silent":  # the handshake's own timeout ended the wait
+        assert said[0].endswith("(no answer within 1 s)")
     assert "MemoryError" not in result.stderr and "internal error" not in result.stderr
     assert list(tmp_path.iterdir()) == []  # no study folder, no tuning storage
 
