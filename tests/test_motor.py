@@ -1,5 +1,6 @@
 """Validation of the PMSM model on the compiled engine: steady-state current under load, the
-energy balance of the electrical and the mechanical side, and the inverter's voltage limit."""
+energy balance of the electrical and the mechanical side, and the inverter's voltage and
+current limits."""
 
 import dataclasses
 import math
@@ -7,8 +8,10 @@ import math
 import numpy as np
 import pytest
 from helpers import RPM, facts_of, frictionless_sea805, speed_setup, step_signal
+from scipy.integrate import solve_ivp
 
 from emasim.plant import actuator as A
+from emasim.plant.motor import current_rates, inverter_current_rates
 from emasim.sim.engine import simulate
 
 # --- 1. steady iq under load -------------------------------------------------------------------
@@ -240,3 +243,77 @@ def test_voltage_never_exceeds_the_inverter_limit(speed_rpm, controller_bus_fact
     assert abs(r["motor_speed_rad_s"]).max() > 0.9 * limit / (
         plant.motor.pole_pairs * plant.motor.flux_linkage_Wb
     )
+
+
+# --- 4. the inverter's current limit -------------------------------------------------------------
+
+_P = frictionless_sea805()[1]
+SEA805 = {
+    name: float(_P[getattr(A, f"P_{key}")])
+    for name, key in (
+        ("rs", "RS"),
+        ("ld", "LD"),
+        ("lq", "LQ"),
+        ("psi_f", "PSI"),
+        ("i_max", "IMAX"),
+        ("u_dc", "UDC"),
+    )
+}
+ELECTRICAL = tuple(SEA805.values())[:4]  # rs, ld, lq, psi_f
+
+
+def inverter_rates(i_d, i_q, u_d, u_q, w_e, motor=SEA805):
+    return inverter_current_rates(i_d, i_q, u_d, u_q, w_e, *motor.values())
+
+
+def test_a_locked_rotor_current_rises_as_rl_and_stops_at_the_limit():
+    """Rotor locked (we = 0), a 10 V step on q: i(t) = (u/Rs)(1 - exp(-Rs t/Lq)) would reach
+    206 A; the inverter holds it at 58 A from t* = -(Lq/Rs) ln(1 - 58 Rs/u). The closed form
+    against a tight-tolerance solve_ivp of the element's own rates."""
+    u, rs, lq, i_max = 10.0, SEA805["rs"], SEA805["lq"], SEA805["i_max"]
+    t_star = -(lq / rs) * math.log(1.0 - i_max * rs / u)
+    t = np.linspace(0.0, 3.0 * t_star, 301)
+    sol = solve_ivp(
+        lambda _t, i: inverter_rates(i[0], i[1], 0.0, u, 0.0),
+        (0.0, t[-1]),
+        [0.0, 0.0],
+        t_eval=t,
+        rtol=1e-10,
+        atol=1e-9,
+        max_step=t_star / 200.0,
+    )
+    expected = np.minimum((u / rs) * (1.0 - np.exp(-rs * t / lq)), i_max)
+    assert np.max(np.abs(sol.y[1] - expected)) < 1e-6 * i_max
+    assert np.max(np.abs(sol.y[0])) < 1e-9
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0, 135.0, -100.0])
+def test_at_the_limit_no_command_grows_the_current_and_below_it_all_act(angle_deg):
+    """At |i| = i_max in any direction, a command that would grow |i| is cut to d|i|/dt = 0;
+    one that lowers it acts as it is; below the limit every command acts as it is."""
+    a = math.radians(angle_deg)
+    i_d, i_q = SEA805["i_max"] * math.cos(a), SEA805["i_max"] * math.sin(a)
+    w_e = 4 * 100.0
+    free = current_rates(i_d, i_q, 150.0, -80.0, w_e, *ELECTRICAL)
+    held = inverter_rates(i_d, i_q, 150.0, -80.0, w_e)
+    growth = i_d * free[0] + i_q * free[1]
+    if growth > 0.0:
+        assert i_d * held[0] + i_q * held[1] == pytest.approx(0.0, abs=1e-9 * abs(growth))
+    else:
+        assert held == pytest.approx(free, rel=1e-15)
+    below = inverter_rates(0.9 * i_d, 0.9 * i_q, 150.0, -80.0, w_e)
+    assert below == current_rates(0.9 * i_d, 0.9 * i_q, 150.0, -80.0, w_e, *ELECTRICAL)
+
+
+@pytest.mark.parametrize("emf_ratio", [0.8, 1.2])
+def test_a_back_emf_beyond_the_bus_drives_the_current_past_the_limit(emf_ratio):
+    """Back-driven at we psi_f = ratio x Udc/sqrt(3), at the limit with the command pushing the
+    current up: within the bus the inverter holds it (diq/dt = 0); beyond it, the largest
+    voltage the inverter has cannot stop the current growing (the diodes conduct)."""
+    u_max = SEA805["u_dc"] / math.sqrt(3.0)
+    w_e = -emf_ratio * u_max / SEA805["psi_f"]  # driven backwards: the back-EMF pushes iq up
+    _, diq = inverter_rates(0.0, SEA805["i_max"], 0.0, u_max, w_e)
+    if emf_ratio < 1.0:
+        assert diq == pytest.approx(0.0, abs=1e-6)
+    else:
+        assert diq > 0.0

@@ -302,10 +302,11 @@ def limits_crossed(result) -> dict:
       speed command within it, so a crossing is the load or an overshoot driving the motor
       past it (a back-driven overspeed is physical; the drive would trip);
     * ``current``: |iq| above the current limit in force (``current_limit_A``: max_current_A,
-      or the rated limit). Every current command is held within it, so a crossing is the
-      current loop failing to hold the current to its command (a load faster than the loop,
-      or a back-EMF near or above what the bus can oppose); emasim models no overcurrent
-      trip, so it reports the crossing;
+      or the rated limit). Every current command is held within it and the inverter holds
+      |i_dq| at max_current_A (emasim.plant.motor.inverter_current_rates), so a crossing is a
+      back-EMF beyond what the bus can oppose driving the current past (physical: the
+      inverter's diodes conduct; emasim models no trip, so it reports it), or the current
+      loop's overshoot past a rated limit below max_current_A;
     * ``rod_stroke``: on a plant without end stops, the rod beyond half its stroke from mid
       stroke (a real actuator would have hit its stops; with stops, :func:`run_warnings`
       reports the contact).
@@ -342,9 +343,9 @@ def limits_crossed(result) -> dict:
 
 LIMIT_CAUSES = {
     "motor_speed": "driven past the drive's speed limit (the load, or an overshoot)",
-    "current": "its commands are held within the limit, but the current loop could not hold "
-    "the current to them (a load faster than the loop, or a back-EMF the bus cannot oppose); "
-    "a real drive's overcurrent protection would trip",
+    "current": "its commands are held within the limit and the inverter holds the current at "
+    "max_current_A, so a back-EMF the bus cannot oppose drove it past (through the inverter's "
+    "diodes; a real drive would trip), or, under a rated limit, the current loop overshot it",
     "rod_stroke": "the plant has no end stops; a real actuator would have hit them",
 }
 

@@ -49,7 +49,7 @@ from .element import (
 )
 from .friction import FRICTION
 from .load_motor import LOAD_MOTOR, load_motor_rate
-from .motor import MOTOR, current_rates, electromagnetic_torque
+from .motor import MOTOR, electromagnetic_torque, inverter_current_rates
 from .ratings import RATINGS
 from .shaft import RUDDER_SHAFT, shaft_torque
 from .stops import END_STOPS, stop_force
@@ -334,7 +334,8 @@ def motor_torque(x, p):
 def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
     """Write dx/dt of the actuator into ``dx``.
 
-    x state; (u_d, u_q) applied stator voltages (V); t_load the load torque TL on the motor
+    x state; (u_d, u_q) the stator voltages commanded of the inverter (V), applied through
+    its current limit (motor.inverter_current_rates); t_load the load torque TL on the motor
     shaft (N*m); f_load the external force F_L on the rod (N); t_rudder the rudder load T(t)
     (N*m, opposing positive deflection: on the linkage's rudder shaft, or through the lumped
     stage's arm, or the load motor's command); p parameters. ``hinges`` (N_HINGES x 2)
@@ -343,7 +344,9 @@ def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
     """
     w = x[X_WM]
     w_e = p[P_NP] * w
-    did, diq = current_rates(x[X_ID], x[X_IQ], u_d, u_q, w_e, p[P_RS], p[P_LD], p[P_LQ], p[P_PSI])
+    did, diq = inverter_current_rates(
+        x[X_ID], x[X_IQ], u_d, u_q, w_e, p[P_RS], p[P_LD], p[P_LQ], p[P_PSI], p[P_IMAX], p[P_UDC]
+    )
     f_b = backlash_force(x, p)
     t_friction, z_rate = friction(w, x[X_Z], p)
     t_net = (

@@ -9,7 +9,11 @@
 mechanical equation J dwm/dt = Te - TL - B wm - Tf is assembled in :mod:`emasim.plant.actuator`
 because its load comes from the drive train. The inverter is averaged: it delivers the commanded
 voltage vector, limited in magnitude to the largest sine a space-vector modulator reaches,
-|u_dq| <= Udc / sqrt(3).
+|u_dq| <= Udc / sqrt(3), and it cannot exceed its current: at |i_dq| >= max_current_A its hardware
+current limit (the cycle-by-cycle chopping of a drive's PWM stage, averaged over the PWM period)
+takes away the part of the command that would grow the current (:func:`inverter_current_rates`).
+Only a back-EMF beyond what the bus can oppose still drives the current past it, through the
+inverter's diodes, as it would on the drive (emasim.analysis.report.limits_crossed reports it).
 """
 
 import math
@@ -38,6 +42,31 @@ def electromagnetic_torque(i_d, i_q, pole_pairs, ld, lq, psi_f):
 def limit_voltage(u_d, u_q, u_dc):
     """Scale (ud, uq) so that |u| <= Udc/sqrt(3), keeping its direction (averaged SVPWM)."""
     return limit_magnitude(u_d, u_q, u_dc / math.sqrt(3.0))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def inverter_current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f, i_max, u_dc):
+    """(did/dt, diq/dt) in A/s for the commanded (ud, uq), through the inverter's current limit.
+
+    Below i_max the command acts as it is. At |i| >= i_max, when the command would grow the
+    current (g = id did/dt + iq diq/dt = |i| d|i|/dt > 0), the inverter applies instead
+
+        u = (ud, uq) - (g / |i|^2) (Ld id, Lq iq),  limited to |u| <= Udc/sqrt(3),
+
+    the command less the part along the current, which leaves d|i|/dt = 0: the current is held
+    at i_max. Where that voltage is beyond the bus (a back-EMF the inverter cannot oppose), the
+    limited voltage lets the current grow, as the drive's diodes would.
+    """
+    did, diq = current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f)
+    i_sq = i_d * i_d + i_q * i_q
+    if i_sq < i_max * i_max:
+        return did, diq
+    growth = i_d * did + i_q * diq
+    if growth <= 0.0:
+        return did, diq
+    cut = growth / i_sq
+    v_d, v_q = limit_voltage(u_d - cut * ld * i_d, u_q - cut * lq * i_q, u_dc)
+    return current_rates(i_d, i_q, v_d, v_q, w_e, rs, ld, lq, psi_f)
 
 
 def torque_constant(pole_pairs: float, psi_f: float) -> float:
@@ -81,7 +110,11 @@ MOTOR = Element(
         Quantity("rotor_inertia_kgm2", "kg m^2", "J"),
         Quantity("motor_viscous_Nms_per_rad", "N m s/rad", "B"),
         Quantity("dc_bus_V", "V", "Udc"),
-        Quantity("max_current_A", "A", "the drive's current limit, held on every command"),
+        Quantity(
+            "max_current_A",
+            "A",
+            "the drive's current limit, held on every command and by the inverter on |i_dq|",
+        ),
         Quantity("max_speed_rad_s", "rad/s", "the drive's speed limit, held on every command"),
     ),
     outputs=(Quantity("torque_Nm", "N m", "electromagnetic torque Te"),),
