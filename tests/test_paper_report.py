@@ -6,18 +6,19 @@ from its template with the title escaped."""
 import pytest
 
 from emasim.analysis import paper_report as pr
+from emasim.analysis.tables import number_cell
 
 
 def test_numbers_have_three_significant_figures_in_fixed_point():
-    assert [pr._fmt(v) for v in (1110.3, 0.0123, 4.8049, 12.0, 0.0)] == [
+    assert [number_cell(v) for v in (1110.3, 0.0123, 4.8049, 12.0, 0.0)] == [
         "1110",
         "0.0123",
         "4.80",
         "12.0",
         "0",
     ]
-    assert pr._fmt(2.5e-5) == "2.5e-05" and pr._fmt(3.2e7) == "3.2e+07"
-    assert pr._fmt(None) == "-" and pr._fmt(True) == "yes"
+    assert number_cell(2.5e-5) == "2.5e-05" and number_cell(3.2e7) == "3.2e+07"
+    assert number_cell(None) == "-" and number_cell(True) == "yes"
 
 
 def test_tables_align_text_left_and_numbers_right():

@@ -171,7 +171,7 @@ def test_worker_output_goes_to_the_log_file(tmp_path):
         "import logging, sys, warnings\n"
         "from emasim.experiments.study import FAILURE_LOG\n"
         "from emasim.experiments.worker_setup import LogToFile, OneLineWarnings\n"
-        f"LogToFile({str(log)!r}).setup(None); OneLineWarnings().setup(None)\n"
+        f"LogToFile({str(log)!r}, FAILURE_LOG).setup(None); OneLineWarnings().setup(None)\n"
         "print('printed'); warnings.warn('warned')\n"
         "logging.getLogger(FAILURE_LOG).error('pi-00001 failed: Traceback (most recent...')\n"
         "raise SystemExit(sys.stderr.write('stderr\\n') and 0)\n"

@@ -9,12 +9,8 @@ import pytest
 from helpers import module_at
 from typer.testing import CliRunner
 
-from emasim.analysis.paper_report import (
-    EXPERIMENTS,
-    HEADLINE,
-    paper_results,
-    reduction,
-)
+from emasim.analysis.judged import HEADLINE
+from emasim.analysis.paper_report import EXPERIMENTS, paper_results, reduction
 from emasim.analysis.paper_report import notes as notes_text
 from emasim.analysis.report import CHECK_TOLERANCE
 from emasim.cli import app
@@ -171,7 +167,7 @@ def test_the_verdict_maps_nominal_cells_are_this_reproductions_headline(report):
     """docs/verdict_map.json (the README's lines of where each verdict flips) holds, at the
     nominal bench's cell, the very figures a fresh reproduction measures against both PID
     variants: the map is of today's bench and gains."""
-    from emasim.analysis.paper_report import PID_LABEL
+    from emasim.analysis.judged import PID_LABEL
     from emasim.analysis.verdict_map import cell_at
 
     vmap = json.loads(module_at("docs/readme_headline.py").VERDICT_MAP.read_text())

@@ -7,31 +7,19 @@ compiled sampled-data engine (:mod:`emasim.sim`), the paper's experiments
 (:mod:`emasim.scenarios`) and the metrics (:mod:`emasim.analysis`).
 """
 
-import functools
-
 from .numba_cache import configure as _configure_numba_cache
 
 NUMBA_CACHE_DIR = _configure_numba_cache()  # keyed by the source: never stale (numba_cache.py)
 
 
-@functools.cache
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("emasim")
-    except PackageNotFoundError:  # running from a source tree that is not installed
-        return "0.0.0+unknown"
-
-
 def __getattr__(name: str):
-    """``__version__``, read from the installed metadata when first asked for (importing
-    importlib.metadata costs 70 ms, a seventh of a command that only checks a scenario),
-    ``run`` (:func:`emasim.experiments.batch.run`) and ``linearize``
-    (:func:`emasim.linear.linearize`), loaded when first used (they load the compiled core,
-    and python-control)."""
+    """``__version__`` (:mod:`emasim.version`, read when first asked for), ``run``
+    (:func:`emasim.experiments.batch.run`) and ``linearize`` (:func:`emasim.linear.linearize`),
+    loaded when first used (they load the compiled core, and python-control)."""
     if name == "__version__":
-        return _version()
+        from .version import __version__
+
+        return __version__
     if name == "linearize":
         from .linear import linearize
 

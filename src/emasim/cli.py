@@ -108,7 +108,7 @@ FORCE_HELP = "replace an earlier emasim result there (never anything emasim did 
 
 def _show_version(value: bool) -> None:
     if value:
-        from . import __version__
+        from .version import __version__
 
         console.print(f"emasim {__version__}", highlight=False)
         raise typer.Exit()

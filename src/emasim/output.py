@@ -436,7 +436,7 @@ def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> Non
     manifest of ``files`` emasim wrote (relative paths, from the build journal), which alone
     it may ever delete, each with its stamp (:func:`_stamp`) and its SHA-256 (``sha256``:
     what proves it whole, :func:`verify_files`)."""
-    from . import __version__
+    from .version import __version__
 
     files = files or []
     stamps, sums = {}, {}

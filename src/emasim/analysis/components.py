@@ -7,7 +7,7 @@ moves no headline figure by INERT or more is inert, and for each figure the shar
 hybrid's lead over PID that each crossed cascade keeps says which loop carries it.
 """
 
-from .paper_report import BENCH_SINE_ROWS, BENCH_STEP_ROWS, HEADLINE, PID_LABEL
+from .judged import BENCH_SINE_ROWS, BENCH_STEP_ROWS, HEADLINE, PID_LABEL
 
 INERT = 0.05  # a part that moves no headline figure by 5 % or more is inert
 TUNED = "as tuned"

@@ -12,14 +12,21 @@ The paper's numbers are in ``paper_results.toml`` beside this module (transcribe
 """
 
 import math
-import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from .. import __version__
 from ..output import json_text, write_new
+from ..version import __version__
+from .judged import (
+    ABLATED_TABLES,
+    BENCH_SINE_ROWS,
+    BENCH_STEP_ROWS,
+    HEADLINE,
+    HYBRID_LABEL,
+    PID_LABEL,
+)
 from .pareto import equal_chatter_table
 from .report import (
     BENCH_SETTLING_BAND,
@@ -32,6 +39,7 @@ from .report import (
     STEADY_FRACTION,
     TRUE_PREFIX,
 )
+from .tables import markdown_table, number_cell
 from .units import unit_of
 
 
@@ -53,60 +61,6 @@ EXPERIMENTS = (
     Experiment("cosim-step", "cosim_step", "Figs. 13-14"),
 )
 SWEEP_CLEARANCES_MM = (0.0, 0.01, 0.05, 0.1)
-
-# paper table key -> (our metric key, unit); lower magnitude is better for every one of them
-BENCH_STEP_ROWS = {
-    "settling_s": ("settling_time_s", "s"),
-    "rise_s": ("rise_time_s", "s"),
-    "chatter_amplitude_deg": ("chatter_amplitude_deg", "deg"),
-    "steady_error_mean_deg": ("steady_error_mean_deg", "deg"),
-    "steady_error_std_deg": ("steady_error_std_deg", "deg"),
-    "steady_error_rms_deg": ("steady_error_rms_deg", "deg"),
-    "peak_velocity_deg_s": ("peak_velocity_deg_s", "deg/s"),
-    "velocity_fluctuation_deg_s": ("velocity_fluctuation_deg_s", "deg/s"),
-    "velocity_error_mean_deg_s": ("velocity_error_mean_deg_s", "deg/s"),
-    "velocity_error_std_deg_s": ("velocity_error_std_deg_s", "deg/s"),
-    "velocity_error_rms_deg_s": ("velocity_error_rms_deg_s", "deg/s"),
-}
-BENCH_SINE_ROWS = {
-    "tracking_error_deg": ("tracking_error_deg", "deg"),
-    "initial_reverse_motion": ("initial_reverse_motion", "yes/no"),
-    "reverse_motion_deg": ("reverse_motion_deg", "deg"),  # not in the paper: how far back
-    "peak_velocity_deg_s": ("peak_velocity_deg_s", "deg/s"),
-    "velocity_fluctuation_deg_s": ("velocity_fluctuation_deg_s", "deg/s"),
-}
-HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
-    "step_steady_error_reduction": (
-        "bench_step",
-        "steady_error_rms_deg",
-        f"RMS of the rudder angle error from {BENCH_STEADY_S:g} s to the end of the 4.72 deg "
-        "step (the RMS, not the mean: the mean of a limit cycle about the target is near zero "
-        "and depends on where the window cuts the cycle)",
-    ),
-    "step_vibration_amplitude_reduction": (
-        "bench_step",
-        "chatter_amplitude_deg",
-        f"half peak-to-peak of the rudder angle from {BENCH_STEADY_S:g} s to the end of the step",
-    ),
-    "step_speed_fluctuation_reduction": (
-        "bench_step",
-        "velocity_fluctuation_deg_s",
-        f"half peak-to-peak of the rudder rate about its linear trend from {BENCH_STEADY_S:g} s",
-    ),
-    "sine_displacement_lag_reduction": (
-        "bench_sine",
-        "tracking_error_deg",
-        f"max |rudder angle error| from {BENCH_STEADY_S:g} s on (the paper's 'lag angle')",
-    ),
-    "sine_speed_fluctuation_reduction": (
-        "bench_sine",
-        "velocity_fluctuation_deg_s",
-        f"half peak-to-peak of the rudder rate about its fitted sine from {BENCH_STEADY_S:g} s",
-    ),
-}
-PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
-INDUSTRIAL_LABEL = "industrial PID"  # velocity and acceleration feed-forward
-ABLATED_TABLES = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
 
 
 def paper_results() -> dict:
@@ -291,7 +245,7 @@ def ablation_moves(rows: list[dict]) -> list[str]:
                     _, stage, before, after = max(steps)
                     lines.append(
                         f"{key} {metric}, {label}: most moved by {stage} "
-                        f"({_fmt(before)} -> {_fmt(after)})"
+                        f"({number_cell(before)} -> {number_cell(after)})"
                     )
     return lines
 
@@ -304,7 +258,7 @@ def _ablation_markdown(rows: list[dict], key: str) -> str:
 
     def pair(stage: str, metric: str, side: str) -> str:
         row = value[stage, metric]
-        return f"{_fmt(row[f'{side}_pid'])} / {_fmt(row[f'{side}_hybrid'])}"
+        return f"{number_cell(row[f'{side}_pid'])} / {number_cell(row[f'{side}_hybrid'])}"
 
     header = ["metric (PID / hybrid)", "unit", "paper bench", *stages]
     body = [
@@ -337,40 +291,8 @@ def definitions() -> list[str]:
     ]
 
 
-def _fmt(value) -> str:
-    """A table cell: three significant figures, in fixed point from 1e-3 to 1e6 (1110, not
-    1.11e+03), '-' for none, yes/no for a flag."""
-    if value is None:
-        return "-"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, str):
-        return value
-    if not math.isfinite(value):
-        return str(value)
-    if value == 0 or not 1e-3 <= abs(value) < 1e6:
-        return f"{value:.3g}"
-    decimals = max(0, 2 - math.floor(math.log10(abs(value))))
-    return f"{value:.{decimals}f}"
-
-
 def _pct(value) -> str:
     return "-" if value is None else f"{100 * value:.0f} %"
-
-
-NUMBER_CELL = re.compile(r"^([-+−]?[\d.]+(e[-+]?\d+)?( %)?|-|nan|inf|-inf)$")
-
-
-def markdown_table(header: list[str], rows: list[list]) -> str:
-    """A Markdown table; columns of numbers right-aligned, columns of text left-aligned."""
-    cells = [[_fmt(c) if not isinstance(c, str) else c for c in row] for row in rows]
-    numeric = [all(NUMBER_CELL.match(row[i]) for row in cells) for i in range(len(header))]
-    lines = [
-        "| " + " | ".join(header) + " |",
-        "|" + "".join("---:|" if n else ":---|" for n in numeric),
-    ]
-    lines += ["| " + " | ".join(row) + " |" for row in cells]
-    return "\n".join(lines)
 
 
 def _bench_markdown(table: list[dict]) -> str:
@@ -392,17 +314,17 @@ def _bench_markdown(table: list[dict]) -> str:
         [
             r["metric"],
             r["unit"],
-            _fmt(r["paper_pid"]),
-            _fmt(r["paper_hybrid"]),
+            number_cell(r["paper_pid"]),
+            number_cell(r["paper_hybrid"]),
             _pct(r["paper_reduction"]),
-            _fmt(r["ours_pid"]),
-            _fmt(r["ours_hybrid"]),
+            number_cell(r["ours_pid"]),
+            number_cell(r["ours_hybrid"]),
             _pct(r["ours_reduction"]),
             *(
                 cell
                 for label in labels
                 for cell in (
-                    _fmt(r["variants"][label]["value"]),
+                    number_cell(r["variants"][label]["value"]),
                     _pct(r["variants"][label]["hybrid_reduction"]),
                 )
             ),
@@ -417,10 +339,10 @@ def _dict_rows_markdown(rows: list[dict]) -> str:
     unit, a column per controller) so that it fits the page."""
     if "controller" not in rows[0]:
         header = list(rows[0])
-        return markdown_table(header, [[_fmt(r[k]) for k in header] for r in rows])
+        return markdown_table(header, [[number_cell(r[k]) for k in header] for r in rows])
     keys = list(dict.fromkeys(k for r in rows for k in r if k != "controller"))
     header = ["metric", "unit", *(r["controller"] for r in rows)]
-    body = [[key, unit_of(key), *(_fmt(r.get(key)) for r in rows)] for key in keys]
+    body = [[key, unit_of(key), *(number_cell(r.get(key)) for r in rows)] for key in keys]
     return markdown_table(header, body)
 
 
@@ -447,21 +369,21 @@ def _headline_markdown(items: dict) -> str:
         [
             name.removesuffix("_reduction").replace("_", " "),
             h["unit"],
-            _fmt(h["paper_pid"]),
-            _fmt(h["paper_hybrid"]),
+            number_cell(h["paper_pid"]),
+            number_cell(h["paper_hybrid"]),
             f"{_pct(h['paper_reduction'])} ({_pct(h['paper_abstract_reduction'])})",
-            _fmt(h["ours_pid"]),
-            _fmt(h["ours_hybrid"]),
+            number_cell(h["ours_pid"]),
+            number_cell(h["ours_hybrid"]),
             _pct(h["ours_reduction"]),
-            _fmt(h["hybrid_better"]),
-            _fmt(h.get("true_pid")),
-            _fmt(h.get("true_hybrid")),
+            number_cell(h["hybrid_better"]),
+            number_cell(h.get("true_pid")),
+            number_cell(h.get("true_hybrid")),
             _pct(h.get("true_reduction")),
             *(
                 cell
                 for label in labels
                 for cell in (
-                    _fmt(h["variants"].get(label, {}).get("value")),
+                    number_cell(h["variants"].get(label, {}).get("value")),
                     _pct(h["variants"].get(label, {}).get("hybrid_reduction")),
                 )
             ),
@@ -489,7 +411,10 @@ def _components_markdown(components: dict) -> list[str]:
         body = [
             [
                 row["component"],
-                *(f"{_fmt(row[k])} ({_fmt(row.get(TRUE_PREFIX + k))})" for k in figures),
+                *(
+                    f"{number_cell(row[k])} ({number_cell(row.get(TRUE_PREFIX + k))})"
+                    for k in figures
+                ),
             ]
             for row in rows
         ]
@@ -625,7 +550,11 @@ def pareto_markdown(tuning: dict | None) -> list[str]:
     )
     header = ["at the chattering of", "chattering (1/s)", *(f"{label} tracking" for label in sets)]
     body = [
-        [row["at the chattering of"], _fmt(row["chatter"]), *(_fmt(row[label]) for label in sets)]
+        [
+            row["at the chattering of"],
+            number_cell(row["chatter"]),
+            *(number_cell(row[label]) for label in sets),
+        ]
         for row in rows
     ]
     return [

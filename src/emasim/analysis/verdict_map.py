@@ -11,7 +11,7 @@ lines that go the other way are counted. :func:`markdown` is the report's sectio
 
 import math
 
-from .paper_report import markdown_table
+from .tables import markdown_table
 from .units import unit_of
 
 AXIS_NAMES = {  # axis -> (how a line names it, its unit)

@@ -106,6 +106,19 @@ def controller_law(function: Callable) -> Callable:
     return njit(cache=True, error_model="numpy")(function)
 
 
+@controller_law
+def unused_law(state, params, meas, ref, ts, out):
+    """The law of a slot no loop closes (the position slot of a speed-loop run): the loop never
+    calls it; were it called, its NaN output would stop the run as a failed law."""
+    out[:] = np.nan
+
+
+@functools.cache
+def absent_slot() -> Compiled:
+    """:func:`unused_law`, ready for a slot no loop closes."""
+    return Compiled(unused_law, np.zeros(1), np.zeros(1))
+
+
 class ControllerConfig(BaseModel):
     """Base of controller configs: validated, unit-suffixed fields, no unknown keys."""
 

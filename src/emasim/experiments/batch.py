@@ -45,13 +45,14 @@ def dask_client(
     scheduler: str | None = None,
     workers: int | None = None,
     processes: bool = True,
-    log_file: Path | None = None,
+    log_file: tuple[Path, str] | None = None,
 ):
     """A ``dask.distributed.Client``: to the cluster at ``scheduler``, else to a LocalCluster of
     ``workers`` (default: one per core) single-threaded worker processes, or with
     ``processes=False`` one worker of that many threads in this process. A cluster it started
     is closed on exit; its worker processes show Python warnings as one line each, and with
-    ``log_file`` print everything there, not on the terminal (emasim.experiments.worker_setup).
+    ``log_file`` = (path, logger) print everything there, and what that logger records, not on
+    the terminal (emasim.experiments.worker_setup).
     """
     from dask.distributed import Client, LocalCluster
 
@@ -78,7 +79,8 @@ def dask_client(
             from .worker_setup import LogToFile, OneLineWarnings
 
             if log_file is not None:
-                client.register_plugin(LogToFile(str(Path(log_file).absolute())))
+                path, failures = log_file
+                client.register_plugin(LogToFile(str(Path(path).absolute()), failures))
             client.register_plugin(OneLineWarnings())
         yield client
 

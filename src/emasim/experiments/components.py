@@ -25,7 +25,7 @@ from ..analysis.components import (
     TUNED,
     figures_of,
 )
-from ..analysis.paper_report import HYBRID_LABEL, PID_LABEL
+from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from ..analysis.report import TRUE_PREFIX
 
 if TYPE_CHECKING:

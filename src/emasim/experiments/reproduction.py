@@ -10,10 +10,9 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from ..analysis.paper_report import (
     EXPERIMENTS,
-    HYBRID_LABEL,
-    PID_LABEL,
     SWEEP_CLEARANCES_MM,
     ablation_rows,
     build_tables,

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.paper_report import (
+from ..analysis.judged import (
     BENCH_SINE_ROWS,
     BENCH_STEP_ROWS,
     HEADLINE,
@@ -77,8 +77,8 @@ def spec_for(scenario: str, runs: int, seed: int = DEFAULT_SEED) -> StudySpec:
 def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY, seed: int = DEFAULT_SEED) -> str:
     """12 hex digits of the experiment's resolved scenario, what a study varies (``specs``),
     the draws' ``seed`` and the emasim version."""
-    from .. import __version__
     from ..scenarios.loader import load_scenario
+    from ..version import __version__
 
     resolved = load_scenario(scenario).model_dump(mode="json")
     text = json.dumps([resolved, specs, seed, __version__], sort_keys=True)

@@ -12,7 +12,6 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .. import __version__
 from ..analysis.report import (
     ANALYSIS_COLUMNS,
     limit_warnings,
@@ -24,6 +23,7 @@ from ..analysis.report import (
 from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
+from ..version import __version__
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario

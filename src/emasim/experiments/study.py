@@ -127,7 +127,7 @@ class Plan:
     digest: str = ""
 
     def record(self) -> dict:
-        from .. import __version__
+        from ..version import __version__
 
         return {
             "study": self.spec.record(),
@@ -140,7 +140,7 @@ class Plan:
 
 def plan_study(spec: StudySpec) -> Plan:
     """Every run of ``spec``, its scenario validated; InputError names the first bad one."""
-    from .. import __version__
+    from ..version import __version__
 
     if not 1 <= spec.runs <= 100_000 or not 1 <= spec.seeds <= 100_000:
         raise InputError("--runs and --seeds: whole numbers from 1 to 100000")
@@ -404,7 +404,9 @@ def run_study(
             with (
                 contextlib.nullcontext(client)
                 if client
-                else dask_client(scheduler, workers, log_file=folder / LOG_FILE) as used
+                else dask_client(
+                    scheduler, workers, log_file=(folder / LOG_FILE, FAILURE_LOG)
+                ) as used
             ):
                 try:  # one run first only to compile: with a warm cache, all at once
                     cold = numba_cache.is_cold()
@@ -575,7 +577,7 @@ def summary_markdown(
     summary: dict, plan: Plan, diverged: dict[str, int], failed: dict[str, int] | None = None
 ) -> str:
     """The summary as Markdown: one table per metric, a row per controller set."""
-    from ..analysis.paper_report import markdown_table
+    from ..analysis.tables import markdown_table
 
     spec = plan.spec
     lines = [

@@ -157,7 +157,7 @@ COLUMNS = {row.column: row.name for row in ROWS}  # study table column -> parame
 def markdown(specs: tuple[str, ...] = UNCERTAINTY) -> str:
     """The table of ``specs`` (the README's: ROWS', between README_BEGIN and README_END), each
     with its row's name and reason ('-' for a spec of no row)."""
-    from ..analysis.paper_report import markdown_table
+    from ..analysis.tables import markdown_table
 
     known = {row.spec: row for row in ROWS}
     return markdown_table(

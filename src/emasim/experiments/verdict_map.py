@@ -21,7 +21,7 @@ where each verdict flips.
 
 import math
 
-from ..analysis.paper_report import HYBRID_LABEL
+from ..analysis.judged import HYBRID_LABEL
 from ..plant.presets import LOADER_RATED_TORQUE_NM, absolute_rudder_encoder, ttl_rudder_encoder
 from .robustness import BASELINES, ROOT, SCENARIOS, figures, study_key
 from .study import OK, StudySpec, complete_tables, run_study

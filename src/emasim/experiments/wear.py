@@ -9,7 +9,7 @@ experiment runs at every level with PID and with the hybrid (a study, :mod:`.stu
 ``runs/robustness/wear-<scenario>-<key>/``, found again like the robustness studies.
 """
 
-from ..analysis.paper_report import HYBRID_LABEL, PID_LABEL
+from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from .robustness import ROOT, SCENARIOS, figures, study_key
 from .study import StudySpec, complete_tables, run_study
 

@@ -33,25 +33,24 @@ class OneLineWarnings(WorkerPlugin):
 
 class LogToFile(WorkerPlugin):
     """Send everything the worker process prints (its stdout and stderr, so Python's and
-    Dask's messages and a C library's alike) to the end of the file ``path``, and each failed
-    study run's traceback (the ``emasim.experiments.study.FAILURE_LOG`` logger) with it: a
-    study's worker processes never write to the user's terminal."""
+    Dask's messages and a C library's alike) to the end of the file ``path``, and what the
+    logger ``failures`` records (a failed study run's traceback) with it: a study's worker
+    processes never write to the user's terminal."""
 
     name = "emasim-log-to-file"
 
-    def __init__(self, path: str):
+    def __init__(self, path: str, failures: str):
         self.path = str(path)
+        self.failures = failures
 
     def setup(self, worker) -> None:
-        from .study import FAILURE_LOG
-
         sys.stdout.flush()
         sys.stderr.flush()
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
         os.dup2(fd, 1)
         os.dup2(fd, 2)
         os.close(fd)
-        failures = logging.getLogger(FAILURE_LOG)
+        failures = logging.getLogger(self.failures)
         failures.handlers[:] = [logging.StreamHandler(sys.stderr)]
         failures.setLevel(logging.ERROR)
         failures.propagate = False

@@ -59,7 +59,7 @@ S_ERROR = 8  # the accuracy error's amplitude a (0: none)
 S_WAVENUMBER = 9  # the accuracy error's 2 pi / lambda (1/unit of the channel)
 N_SENSOR_COLUMNS = 10
 
-# columns of the sensors' state (emasim.sim.core.SensorArrays.state)
+# columns of the sensors' state (emasim.sim.core.Data.sensor_state)
 ST_GAP = 0  # the play operator's output
 ST_HELD = 1  # the reading held between samples
 ST_SOURCE = 2  # a derived channel: its source's reading at its previous sample

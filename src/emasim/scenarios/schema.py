@@ -453,7 +453,7 @@ class Scenario(Strict):
     def setup(self) -> "Setup":
         """Compile this scenario into the arrays the engine runs (the first call loads the
         compiled core: checking a scenario does not)."""
-        from ..sim.engine import FEEDBACK_MOTOR, FEEDBACK_ROD, FEEDBACK_RUDDER
+        from ..sim.core import FEEDBACK_MOTOR, FEEDBACK_ROD, FEEDBACK_RUDDER
         from ..sim.setup import Setup, plant_facts
 
         facts = plant_facts(self.plant)

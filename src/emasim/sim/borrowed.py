@@ -13,6 +13,10 @@ a C buffer that numba's ``carray`` makes: its memory record is null, and numba's
 decref then return at once). The loop rebinds every array it is given to such a view on entry;
 everything it calls, controllers included, then runs without atomics.
 
+:func:`borrowed_record` does the same for every array of a record (emasim.sim.core: a
+NamedTuple of arrays, scalars and records), whatever its fields: the loop borrows its two
+records in one call each.
+
 Only arrays that outlive the loop may be borrowed: the arguments of ``run_ticks``, which the
 caller (Python) holds for the whole call. Never borrow an array made inside compiled code; numba
 would free it after its last use under its own name, and the view would dangle.
@@ -20,6 +24,7 @@ would free it after its last use under its own name, and the view would dangle.
 
 import numba as nb
 from numba import types
+from numba.core import cgutils
 from numba.core.extending import intrinsic
 
 from ..jit import njit
@@ -40,3 +45,29 @@ def _data_pointer(typingctx, array):
 def borrowed(array):
     """A view of a C-contiguous array's data without reference counting (module docstring)."""
     return nb.carray(_data_pointer(array), array.shape)
+
+
+def _borrow_value(context, builder, typ, value):
+    """``value`` of numba type ``typ`` with every array in it (a tuple's, recursively) made
+    a view without a memory record (the LLVM of :func:`borrowed`)."""
+    if isinstance(typ, types.Array):
+        array = context.make_array(typ)(context, builder, value=value)
+        array.meminfo = cgutils.get_null_value(array.meminfo.type)
+        array.parent = cgutils.get_null_value(array.parent.type)
+        return array._getvalue()
+    if isinstance(typ, types.BaseTuple):
+        for i, member in enumerate(typ.types):
+            item = _borrow_value(context, builder, member, builder.extract_value(value, i))
+            value = builder.insert_value(value, item, i)
+    return value
+
+
+@intrinsic
+def borrowed_record(typingctx, record):
+    """``record`` with each of its arrays borrowed (module docstring)."""
+    signature = record(record)
+
+    def codegen(context, builder, sig, args):
+        return _borrow_value(context, builder, sig.args[0], args[0])
+
+    return signature, codegen

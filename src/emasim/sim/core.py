@@ -1,28 +1,24 @@
-"""The compiled core's inputs: a few typed records instead of a long list of arrays.
+"""The compiled core's inputs: two records, MuJoCo-style, each declared once.
 
-One run of the compiled loop (:func:`emasim.sim.engine.run_ticks`) reads
+One run of the compiled loop is ``run_ticks(k0, k1, model, data, position_law, speed_law,
+current_law)`` (:func:`emasim.sim.engine.run_ticks`):
 
-* :class:`PlantArrays`: the packed SI parameters and every state's divergence bound;
-* :class:`SignalArrays`: the reference and the three loads, encoded (emasim.signals);
-* :class:`SensorArrays`: the sensor table, the sensors' state, and the map from the rudder
-  encoder's angle to the rod position it stands for (rudder feedback);
-* the **drive**'s state: its I^2 t heat, the voltage applied before the computation delay,
-  the current limit in force and the limits that acted (``D_*`` below);
-* the **slots** position, speed and current: each a controller law with the library's
-  signature (:data:`emasim.control.slot.CONTROLLER_SIG`), called through a function pointer,
-  and its ``(params, state)`` arrays. The three laws are arguments of their own (numba types
-  a law given inside a tuple through an experimental path, with a warning at every call);
-  their arrays travel as one tuple;
-* :class:`Timing`: sample period, sub-steps per sample, recording period, noise seed,
-  which loops close, the computation delay and which sensor the position loop closes on;
-* :class:`TraceArrays`: the recorded columns, which the loop fills every ``record_every``
-  ticks;
-* :class:`Workspace`: the scratch arrays of the RK4 stages and of the control tick, made by
-  the caller so that the loop can borrow them (emasim.sim.borrowed).
+* :class:`Model`: what the run reads and never changes (the plant's parameters and bounds, the
+  signals, the sensor table, the slots' parameters, the kept trace columns, :class:`Timing`);
+* :class:`Data`: what it changes (the plant state, the sensors', the drive's and the slots'
+  states, the scratch, the trace, the status);
+* the three **laws** (position, speed, current): controller laws with the library's signature
+  (:data:`emasim.control.slot.CONTROLLER_SIG`), called through function pointers. They are
+  arguments of their own: numba types a law given inside a tuple through an experimental path,
+  with a warning at every call.
 
-:meth:`emasim.sim.setup.Setup.start` builds them from a Setup, which a scenario builds
-(:meth:`emasim.scenarios.schema.Scenario.setup`); the engine, the reference path, the
-co-simulation, the FMU slaves and the benchmarks all take them from there.
+Each record is a NamedTuple whose annotations are its fields' numba types; :func:`numba_type`
+derives its numba type from them, and :data:`RUN_SIG` follows from those, so a field is added
+in one place. The loop borrows every array of both records on entry, whatever their fields
+(emasim.sim.borrowed.borrowed_record). :meth:`emasim.sim.setup.Setup.start` builds them from
+a Setup, which a scenario builds (:meth:`emasim.scenarios.schema.Scenario.setup`); the engine,
+the reference path, the co-simulation, the FMU slaves and the benchmarks all take them from
+there.
 
 Measured before adopting this, on the 2-core development machine:
 
@@ -31,7 +27,8 @@ Measured before adopting this, on the 2-core development machine:
   cache serves records in a fresh process, provided their classes live in a module (here),
   not in ``__main__``;
 * a record passed to a function called at every RK4 sub-step costs 15 % of the lumped loop
-  (0.87 against 0.75 us per sub-step), so ``plant_step`` takes its three loads as arrays;
+  (0.87 against 0.75 us per sub-step), so ``plant_step`` takes its three loads as arrays
+  (the records are read once a tick);
 * each call of ``run_ticks`` from Python costs far more than a tick: 116 us with the old 26
   arguments, 278 us with three laws handed over as dispatchers (numba looks up their machine
   code at every call), 91 us as :class:`LawAddress`. So a run is one call
@@ -45,12 +42,12 @@ import numpy as np
 from numba import types
 
 from ..control.slot import CONTROLLER_TYPE, controller_signature
-from ..interface import N_MEAS, N_OUT, N_REF
 from ..plant.actuator import N_STATE
 from ..plant.linkage import N_HINGES
 
 F8 = types.float64
 I8 = types.int64
+I8A = types.int64[::1]
 F8A = types.float64[::1]
 F8A2 = types.float64[:, ::1]
 
@@ -88,48 +85,86 @@ class LawAddress(types.WrapperAddressProtocol):
         return controller_signature()
 
 
-class PlantArrays(NamedTuple):
-    """The plant: packed SI parameters (emasim.plant.actuator layout), state bounds."""
-
-    params: np.ndarray
-    limits: np.ndarray
-
-
-class SignalArrays(NamedTuple):
-    """Encoded signals: the outer loop's reference (SI) and the loads."""
-
-    reference: np.ndarray
-    motor_load: np.ndarray  # N m on the motor shaft
-    rod_load: np.ndarray  # N on the rod, positive opposing extension
-    rudder_load: np.ndarray  # N m on the linkage's rudder shaft, opposing positive deflection
-
-
-class SensorArrays(NamedTuple):
-    """The sensor table and state (emasim.plant.sensors), and ``rudder_to_rod``: an encoded
-    table (emasim.signals) from a rudder angle (rad, as its "time") to the rod position (m)
-    the rigid kinematics give, read when the position loop closes on the rudder encoder."""
-
-    table: np.ndarray
-    state: np.ndarray
-    rudder_to_rod: np.ndarray
+def numba_type(record: type) -> types.Type:
+    """The numba type of a record class, from its fields' annotations (a record field's type is
+    that record's numba type in turn): the one declaration each record needs."""
+    fields = tuple(
+        numba_type(t) if isinstance(t, type) and issubclass(t, tuple) else t
+        for t in (record.__annotations__[name] for name in record._fields)
+    )
+    if len(set(fields)) == 1:  # numba types a namedtuple of one field type as a "uni" tuple
+        return types.NamedUniTuple(fields[0], len(fields), record)
+    return types.NamedTuple(fields, record)
 
 
 class Timing(NamedTuple):
     """When things happen: Ts (s), RK4 sub-steps per tick, ticks per recorded row, the seed of
-    the sensor noise, the loop structure (engine.LOOP_*), the computation delay in sub-steps
-    (the voltage computed at a tick is applied that many sub-steps later, at most one tick)
-    and the position loop's feedback (engine.FEEDBACK_*)."""
+    the sensor noise, the loop structure (LOOP_*), the computation delay in sub-steps (the
+    voltage computed at a tick is applied that many sub-steps later, at most one tick) and the
+    position loop's feedback (FEEDBACK_*)."""
 
-    sample_period_s: float
-    substeps: int
-    record_every: int
-    seed: int
-    loop: int
-    delay_substeps: int
-    feedback: int
+    sample_period_s: F8
+    substeps: I8
+    record_every: I8
+    seed: I8
+    loop: I8
+    delay_substeps: I8
+    feedback: I8
 
 
-# the drive's state (Core.drive), kept from tick to tick
+class Model(NamedTuple):
+    """What a run reads and never changes: the packed SI parameters (emasim.plant.actuator
+    layout) and every state's divergence bound; the encoded reference (SI) and loads
+    (emasim.signals): N m on the motor shaft, N on the rod (positive opposing extension), N m
+    on the rudder shaft (opposing positive deflection); the sensor table (emasim.plant.sensors)
+    and ``rudder_to_rod``, an encoded table from a rudder angle (rad, as its "time") to the rod
+    position (m) the rigid kinematics give, read when the position loop closes on the rudder
+    encoder; each slot's parameters (position, speed, current); the TRACE index of each kept
+    trace column (emasim.sim.trace); and the timing."""
+
+    params: F8A
+    limits: F8A
+    reference: F8A
+    motor_load: F8A
+    rod_load: F8A
+    rudder_load: F8A
+    sensor_table: F8A2
+    rudder_to_rod: F8A
+    slot_params: types.UniTuple(F8A, 3)
+    trace_columns: I8A
+    timing: Timing
+
+
+class Workspace(NamedTuple):
+    """The plant step's scratch (emasim.sim.engine.plant_step): the RK4 stage derivatives
+    k1..k4 and stage state, and the linkage's hinge table."""
+
+    rk4: types.UniTuple(F8A, 5)
+    hinges: F8A2
+
+
+class Data(NamedTuple):
+    """What a run changes: the plant state; the sensors' state; the drive's state (``D_*``);
+    each slot's state; the plant step's workspace; the measurements, reference and output of a
+    slot, reused from tick to tick; the recorded traces (one row of ``trace`` per kept column,
+    so each signal is contiguous and a Result and its Parquet file take it without a copy) and
+    the scratch a full TRACE row is assembled in before its kept columns are stored; and the
+    status (code, tick, index) the loop stops with (emasim.sim.engine)."""
+
+    x: F8A
+    sensor_state: F8A2
+    drive: F8A
+    slot_states: types.UniTuple(F8A, 3)
+    work: Workspace
+    meas: F8A
+    ref: F8A
+    out: F8A
+    trace: F8A2
+    trace_row: F8A
+    status: I8A
+
+
+# the drive's state (Data.drive), kept from tick to tick
 D_HEAT = 0  # I^2 t heat above the continuous rating (A^2 s; emasim.plant.ratings)
 D_UD = 1  # the voltage applied until the delayed command takes over (V)
 D_UQ = 2
@@ -139,64 +174,22 @@ D_FOLDED = 5  # 1 while the I^2 t protection holds the current at its continuous
 D_LAW = 6  # 1 + the slot whose law gave a non-finite output this tick (0: none; engine)
 N_DRIVE = 7
 
+LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
+LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
+LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
 
-class Workspace(NamedTuple):
-    """Scratch reused from tick to tick: the RK4 stage derivatives k1..k4 and stage state and
-    the linkage's hinge table (emasim.sim.engine.plant_step), and the measurements, reference
-    and output of a slot."""
+FEEDBACK_ROD = 0  # the position loop closes on the rod's displacement sensor
+FEEDBACK_RUDDER = 1  # ... on the rudder encoder, through the rigid kinematics' rod position
+FEEDBACK_MOTOR = 2  # ... on the motor encoder, read as the nut's travel K theta_m (semi-closed)
 
-    rk4: tuple
-    hinges: np.ndarray
-    meas: np.ndarray
-    ref: np.ndarray
-    out: np.ndarray
-
-
-class TraceArrays(NamedTuple):
-    """The recorded traces, one row of ``data`` per kept column (so each signal is contiguous,
-    and a Result and its Parquet file take it without a copy); ``columns`` holds the TRACE
-    index (emasim.sim.engine) of each kept column, and ``row`` is the scratch a full TRACE
-    row is assembled in before its kept columns are stored."""
-
-    data: np.ndarray
-    columns: np.ndarray
-    row: np.ndarray
-
-
-class Core(NamedTuple):
-    """Everything :func:`emasim.sim.engine.run_ticks` reads besides the state and the trace,
-    in its argument order: ``run_ticks(k0, k1, x, *core, trace, status)``."""
-
-    plant: PlantArrays
-    signals: SignalArrays
-    sensors: SensorArrays
-    drive: np.ndarray
-    position_law: object  # the slots' compiled laws
-    speed_law: object
-    current_law: object
-    slots: tuple  # ((params, state) of the position, the speed and the current slot)
-    timing: Timing
-    workspace: Workspace
-
-
-PLANT_TYPE = types.NamedUniTuple(F8A, 2, PlantArrays)
-SIGNALS_TYPE = types.NamedUniTuple(F8A, 4, SignalArrays)
-SENSORS_TYPE = types.NamedTuple((F8A2, F8A2, F8A), SensorArrays)
-TIMING_TYPE = types.NamedTuple((F8, I8, I8, I8, I8, I8, I8), Timing)
-RK4_TYPE = types.UniTuple(F8A, 5)
-TRACE_TYPE = types.NamedTuple((F8A2, types.int64[::1], F8A), TraceArrays)
-WORKSPACE_TYPE = types.NamedTuple((RK4_TYPE, F8A2, F8A, F8A, F8A), Workspace)
-SLOTS_TYPE = types.UniTuple(types.UniTuple(F8A, 2), 3)  # (params, state) of each slot
+MODEL_TYPE = numba_type(Model)
+DATA_TYPE = numba_type(Data)
+WORKSPACE_TYPE = numba_type(Workspace)
 LAW_TYPE = CONTROLLER_TYPE
 POSITION_SLOT, SPEED_SLOT, CURRENT_SLOT = range(3)
+RUN_SIG = types.void(I8, I8, MODEL_TYPE, DATA_TYPE, LAW_TYPE, LAW_TYPE, LAW_TYPE)
 
 
 def new_workspace() -> Workspace:
     """A fresh :class:`Workspace`."""
-    return Workspace(
-        tuple(np.zeros(N_STATE) for _ in range(5)),
-        np.zeros((N_HINGES, 2)),
-        np.zeros(N_MEAS),
-        np.zeros(N_REF),
-        np.zeros(N_OUT),
-    )
+    return Workspace(tuple(np.zeros(N_STATE) for _ in range(5)), np.zeros((N_HINGES, 2)))

@@ -63,14 +63,14 @@ def cosimulate(scenario, communication_step_s: float, trust_fmu: bool = False):
     hinges = np.zeros((L.N_HINGES, 2))
     n = linked.n_ticks
     start = time.perf_counter()
-    fmu = _mechanism_fmu(scenario, linked.step_s, drive.run.x[A.X_XL], y)  # None: built in
+    fmu = _mechanism_fmu(scenario, linked.step_s, drive.x[A.X_XL], y)  # None: built in
     try:
         for k0 in range(0, n, ticks):
             k1 = min(n, k0 + ticks)
-            drive.run.x[A.X_MECHANISM :] = mechanism[A.X_MECHANISM :]  # held over this step
-            s0 = drive.run.x[A.X_XL]
+            drive.x[A.X_MECHANISM :] = mechanism[A.X_MECHANISM :]  # held over this step
+            s0 = drive.x[A.X_XL]
             drive.advance(k1)
-            s1 = drive.run.x[A.X_XL]
+            s1 = drive.x[A.X_XL]
             span = (k1 - k0) * ts
             v = (s1 - s0) / span
             substeps = linked.substeps * (k1 - k0)  # the drive's sub-step, h, on both sides

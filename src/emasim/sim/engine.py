@@ -17,10 +17,8 @@ the loop is compiled once, eagerly and cached on disk, whatever the controllers.
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import types
 
 from ..errors import SimulationDiverged
 from ..interface import (
@@ -47,7 +45,7 @@ from ..plant.motor import limit_voltage
 from ..plant.ratings import folded_back, heat_update, speed_foldback
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
-from .borrowed import borrowed
+from .borrowed import borrowed_record
 from .core import (
     CURRENT_SLOT,
     D_CURRENT_LIMIT,
@@ -57,29 +55,18 @@ from .core import (
     D_LAW,
     D_UD,
     D_UQ,
-    F8A,
-    LAW_TYPE,
-    PLANT_TYPE,
+    FEEDBACK_MOTOR,
+    FEEDBACK_RUDDER,
+    LOOP_POSITION_CURRENT,
+    LOOP_SPEED,
     POSITION_SLOT,
-    SENSORS_TYPE,
-    SIGNALS_TYPE,
-    SLOTS_TYPE,
+    RUN_SIG,
     SPEED_SLOT,
-    TIMING_TYPE,
-    TRACE_TYPE,
-    WORKSPACE_TYPE,
-    PlantArrays,
-    SensorArrays,
-    SignalArrays,
-    TraceArrays,
-    Workspace,
 )
 from .diagnosis import likely_cause
 from .lawguard import law_failure, watching
 from .result import Result, RunDescription
-
-if TYPE_CHECKING:
-    from .setup import Setup
+from .setup import Setup
 from .trace import (
     C_CURRENT_LIMIT,
     C_IQ_REF,
@@ -99,14 +86,6 @@ from .trace import (
     TRACE,
     TRACE_COLUMNS,
 )
-
-LOOP_SPEED = 0  # reference is a motor speed: speed controller -> current loop
-LOOP_POSITION = 1  # reference is a rod position: position -> speed -> current (cascade)
-LOOP_POSITION_CURRENT = 2  # position controller commands the current loop directly
-
-FEEDBACK_ROD = 0  # the position loop closes on the rod's displacement sensor
-FEEDBACK_RUDDER = 1  # ... on the rudder encoder, through the rigid kinematics' rod position
-FEEDBACK_MOTOR = 2  # ... on the motor encoder, read as the nut's travel K theta_m (semi-closed)
 
 VOLTAGE_ROUND_OFF = 1e-9  # a voltage this close to Udc / sqrt(3) is at the inverter's limit
 PROGRESS_CHUNKS = 20  # calls of run_ticks in a run with a progress bar (one without)
@@ -140,7 +119,7 @@ def _law_failed(drive, slot):
 
 
 @njit(cache=True, error_model="numpy")
-def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing, scratch):
+def control_tick(t, tick, model, data, laws):
     """One control sample: read the sensors, run the slots that close (position, speed, then
     current), and return (ud, uq, speed_ref, iq_ref, position_ref) applied from t + Td on.
 
@@ -148,27 +127,28 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
     within +-max_speed, a current command within the bounds of :func:`current_bounds`, the
     voltage within the inverter's Udc/sqrt(3); ``drive`` receives the limit in force and the
     limits the commands sat at (cut by the drive, or already at the limit: the library's laws
-    limit their own outputs), and its I^2 t heat advances on the measured current. ``laws`` are the
-    slots' compiled functions, ``slots`` their (params, state); ``scratch`` is (meas, ref,
-    out), reused from tick to tick. A law whose output the loop uses is not finite ends the
-    tick at once with drive[D_LAW] = 1 + its slot (``out`` keeps what it wrote).
+    limit their own outputs), and its I^2 t heat advances on the measured current. ``model``
+    and ``data`` are the run's records (emasim.sim.core), ``laws`` the slots' compiled
+    functions. A law whose output the loop uses is not finite ends the tick at once with
+    drive[D_LAW] = 1 + its slot (``data.out`` keeps what it wrote).
     """
-    meas, ref, out = scratch
-    p = plant.params
+    meas, ref, out, drive = data.meas, data.ref, data.out, data.drive
+    p = model.params
+    timing = model.timing
     ts = timing.sample_period_s
-    measure(x, p, sensors.table, sensors.state, meas, tick)
+    params, states = model.slot_params, data.slot_states
+    measure(data.x, p, model.sensor_table, data.sensor_state, meas, tick)
     if timing.feedback == FEEDBACK_RUDDER:
-        meas[M_POSITION] = signal_value(sensors.rudder_to_rod, meas[M_RUDDER])
+        meas[M_POSITION] = signal_value(model.rudder_to_rod, meas[M_RUDDER])
     elif timing.feedback == FEEDBACK_MOTOR:
         meas[M_POSITION] = p[A.P_K] * meas[M_ANGLE]
     flags = 0
-    r, dr, ddr = signal_derivatives(signals.reference, t)
+    r, dr, ddr = signal_derivatives(model.reference, t)
     position_ref = np.nan
     if timing.loop != LOOP_SPEED:
         position_ref = r
         ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = r, dr, ddr
-        params, state = slots[POSITION_SLOT]
-        laws[POSITION_SLOT](state, params, meas, ref, ts, out)
+        laws[POSITION_SLOT](states[POSITION_SLOT], params[POSITION_SLOT], meas, ref, ts, out)
         r, dr = out[O_VALUE], out[O_RATE]
         if not (np.isfinite(r) and np.isfinite(dr)):
             return _law_failed(drive, POSITION_SLOT)
@@ -182,8 +162,7 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
             flags |= LIMIT_SPEED
         r = clamp(r, -w_max, w_max)
         ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = r, dr, 0.0
-        params, state = slots[SPEED_SLOT]
-        laws[SPEED_SLOT](state, params, meas, ref, ts, out)
+        laws[SPEED_SLOT](states[SPEED_SLOT], params[SPEED_SLOT], meas, ref, ts, out)
         command = out[O_VALUE]
         if not np.isfinite(command):
             return _law_failed(drive, SPEED_SLOT)
@@ -191,8 +170,7 @@ def control_tick(t, tick, x, plant, signals, sensors, drive, laws, slots, timing
     if iq_ref >= i_high or iq_ref <= i_low:  # at a bound: the current's, or the fold-back's
         flags |= LIMIT_CURRENT if abs(iq_ref) >= i_lim else LIMIT_SPEED
     ref[R_VALUE], ref[R_RATE], ref[R_ACCEL] = iq_ref, 0.0, 0.0
-    params, state = slots[CURRENT_SLOT]
-    laws[CURRENT_SLOT](state, params, meas, ref, ts, out)
+    laws[CURRENT_SLOT](states[CURRENT_SLOT], params[CURRENT_SLOT], meas, ref, ts, out)
     if not (np.isfinite(out[O_UD]) and np.isfinite(out[O_UQ])):
         return _law_failed(drive, CURRENT_SLOT)
     u_d, u_q = limit_voltage(out[O_UD], out[O_UQ], p[A.P_UDC])
@@ -267,9 +245,10 @@ def check_state(x, p, limits, status, tick):
 
 
 @njit(cache=True, error_model="numpy")
-def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref, meas, drive):
-    """Store row r of the traces: the kept columns of the TRACE row (core.TraceArrays)."""
-    row = trace.row
+def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
+    """Store row r of the traces: the kept columns (Model.trace_columns) of the TRACE row,
+    assembled in Data.trace_row."""
+    row, x, p, meas, drive = data.trace_row, data.x, model.params, data.meas, data.drive
     row[0] = t
     for i in range(A.N_STATE):
         row[C_STATE + i] = x[i]
@@ -281,146 +260,55 @@ def record(trace, r, t, x, p, signals, u_d, u_q, speed_ref, iq_ref, position_ref
     row[C_CURRENT_LIMIT] = drive[D_CURRENT_LIMIT]
     row[C_LIMIT_FLAGS] = drive[D_FLAGS]
     A.plant_outputs(x, p, row[C_OUTPUTS : C_OUTPUTS + A.N_OUTPUTS])
-    row[C_MOTOR_LOAD] = signal_value(signals.motor_load, t)
-    row[C_ROD_LOAD] = signal_value(signals.rod_load, t)
-    row[C_RUDDER_LOAD] = signal_value(signals.rudder_load, t)
+    row[C_MOTOR_LOAD] = signal_value(model.motor_load, t)
+    row[C_ROD_LOAD] = signal_value(model.rod_load, t)
+    row[C_RUDDER_LOAD] = signal_value(model.rudder_load, t)
     row[C_MEASURED_SPEED] = meas[M_SPEED]
     row[C_MEASURED_POSITION] = meas[M_POSITION]
     row[C_MEASURED_RUDDER] = meas[M_RUDDER]
-    for j in range(trace.columns.size):
-        trace.data[j, r] = row[trace.columns[j]]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _borrow(x, plant, signals, sensors, drive, slots, workspace, trace, status):
-    """Every array run_ticks is given, as a borrowed view (emasim.sim.borrowed)."""
-    rk4 = workspace.rk4
-    return (
-        borrowed(x),
-        PlantArrays(borrowed(plant.params), borrowed(plant.limits)),
-        SignalArrays(
-            borrowed(signals.reference),
-            borrowed(signals.motor_load),
-            borrowed(signals.rod_load),
-            borrowed(signals.rudder_load),
-        ),
-        SensorArrays(
-            borrowed(sensors.table), borrowed(sensors.state), borrowed(sensors.rudder_to_rod)
-        ),
-        borrowed(drive),
-        (
-            (borrowed(slots[0][0]), borrowed(slots[0][1])),
-            (borrowed(slots[1][0]), borrowed(slots[1][1])),
-            (borrowed(slots[2][0]), borrowed(slots[2][1])),
-        ),
-        Workspace(
-            (
-                borrowed(rk4[0]),
-                borrowed(rk4[1]),
-                borrowed(rk4[2]),
-                borrowed(rk4[3]),
-                borrowed(rk4[4]),
-            ),
-            borrowed(workspace.hinges),
-            borrowed(workspace.meas),
-            borrowed(workspace.ref),
-            borrowed(workspace.out),
-        ),
-        TraceArrays(borrowed(trace.data), borrowed(trace.columns), borrowed(trace.row)),
-        borrowed(status),
-    )
-
-
-RUN_SIG = types.void(
-    types.int64,  # k0
-    types.int64,  # k1
-    F8A,  # x, the plant state, advanced in place
-    PLANT_TYPE,
-    SIGNALS_TYPE,
-    SENSORS_TYPE,
-    F8A,  # the drive's state (core.D_*)
-    LAW_TYPE,  # position
-    LAW_TYPE,  # speed
-    LAW_TYPE,  # current
-    SLOTS_TYPE,
-    TIMING_TYPE,
-    WORKSPACE_TYPE,
-    TRACE_TYPE,
-    types.int64[::1],  # status
-)
+    columns, trace = model.trace_columns, data.trace
+    for j in range(columns.size):
+        trace[j, r] = row[columns[j]]
 
 
 @njit(RUN_SIG, cache=True, error_model="numpy", nogil=True)
-def run_ticks(
-    k0,
-    k1,
-    x,
-    plant,
-    signals,
-    sensors,
-    drive,
-    position_law,
-    speed_law,
-    current_law,
-    slots,
-    timing,
-    workspace,
-    trace,
-    status,
-):
-    """Run ticks k0 .. k1-1 in place on x, the slots' states, the sensors' and the drive's
-    state (the records of emasim.sim.core), every array borrowed (emasim.sim.borrowed).
+def run_ticks(k0, k1, model, data, position_law, speed_law, current_law):
+    """Run ticks k0 .. k1-1 in place on ``data`` (the plant state, the sensors', the drive's and
+    the slots' states, the trace), reading ``model`` (emasim.sim.core), every array of both
+    borrowed (emasim.sim.borrowed).
 
-    Row k // record_every of ``trace`` is recorded at every ``record_every``-th tick.
+    Row k // record_every of the trace is recorded at every ``record_every``-th tick.
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
-    plant's limits the run stops and ``status`` holds (code, tick, state index); on a law's
-    non-finite output, (LAW_FAILED, tick, slot).
+    plant's limits the run stops and ``data.status`` holds (code, tick, state index); on a
+    law's non-finite output, (LAW_FAILED, tick, slot).
     """
     if k0 == 0:
-        seed_noise(timing.seed)
-    x, plant, signals, sensors, drive, slots, workspace, trace, status = _borrow(
-        x, plant, signals, sensors, drive, slots, workspace, trace, status
-    )
+        seed_noise(model.timing.seed)
+    model, data = borrowed_record(model), borrowed_record(data)
+    timing = model.timing
     ts = timing.sample_period_s
     h = ts / timing.substeps
-    scratch = (workspace.meas, workspace.ref, workspace.out)
-    p = plant.params
-    motor_load, rod_load, rudder_load = signals.motor_load, signals.rod_load, signals.rudder_load
+    x, p, drive, status, work = data.x, model.params, data.drive, data.status, data.work
+    motor_load, rod_load, rudder_load = model.motor_load, model.rod_load, model.rudder_load
     laws = (position_law, speed_law, current_law)
     delay = timing.delay_substeps
     for k in range(k0, k1):
         t = k * ts
-        u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(
-            t, k, x, plant, signals, sensors, drive, laws, slots, timing, scratch
-        )
+        u_d, u_q, speed_ref, iq_ref, position_ref = control_tick(t, k, model, data, laws)
         if drive[D_LAW] != 0.0:
             status[0], status[1], status[2] = LAW_FAILED, k, int(drive[D_LAW]) - 1
             return
         if k % timing.record_every == 0:
             r = k // timing.record_every
-            record(
-                trace,
-                r,
-                t,
-                x,
-                p,
-                signals,
-                u_d,
-                u_q,
-                speed_ref,
-                iq_ref,
-                position_ref,
-                scratch[0],
-                drive,
-            )
+            record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref)
         for j in range(timing.substeps):
             if j < delay:  # the computation delay: the previous command still acts
                 v_d, v_q = drive[D_UD], drive[D_UQ]
             else:
                 v_d, v_q = u_d, u_q
-            plant_step(t + j * h, x, v_d, v_q, p, motor_load, rod_load, rudder_load, h, workspace)
+            plant_step(t + j * h, x, v_d, v_q, p, motor_load, rod_load, rudder_load, h, work)
         drive[D_UD], drive[D_UQ] = u_d, u_q
-        if not check_state(x, p, plant.limits, status, k + 1):
+        if not check_state(x, p, model.limits, status, k + 1):
             return
 
 
@@ -443,39 +331,43 @@ class EngineRun:
 
     ``advance(k_end)`` runs ticks up to k_end (exclusive) and raises
     :class:`emasim.errors.SimulationDiverged` with the time and the state's name on a blow-up;
-    ``run.x`` is the plant state in between (a co-simulation master reads and feeds it).
+    ``x`` is the plant state in between (a co-simulation master reads and feeds it).
     """
 
-    def __init__(self, setup, keep_elements: tuple[str, ...] = ()):
+    def __init__(self, setup: Setup, keep_elements: tuple[str, ...] = ()):
         self.setup = setup
         self.keep_elements = keep_elements
         self.run = setup.start(keep_elements)
-        self.status = np.zeros(3, dtype=np.int64)
         self.tick = 0
         self.wall_s = 0.0
 
+    @property
+    def x(self) -> np.ndarray:
+        """The plant state, advanced in place."""
+        return self.run.data.x
+
     def advance(self, k_end: int) -> None:
-        run = self.run
-        out = run.core.workspace.out
+        model, data, laws = self.run.model, self.run.data, self.run.laws
+        status = data.status
         start = time.perf_counter()
-        with watching(out) as raised:
-            run_ticks(self.tick, k_end, run.x, *run.core, run.trace, self.status)
+        with watching(data.out) as raised:
+            run_ticks(self.tick, k_end, model, data, *laws)
         self.wall_s += time.perf_counter() - start
-        if self.status[0] == LAW_FAILED:
-            t = int(self.status[1]) * self.setup.sample_period_s
-            raise law_failure(self.setup, int(self.status[2]), t, out, raised)
-        if self.status[0] != OK:
-            raise SimulationDiverged(_divergence_message(self.setup, self.status))
+        if status[0] == LAW_FAILED:
+            t = int(status[1]) * self.setup.sample_period_s
+            raise law_failure(self.setup, int(status[2]), t, data.out, raised)
+        if status[0] != OK:
+            raise SimulationDiverged(_divergence_message(self.setup, status))
         self.tick = k_end
 
     def result(self) -> Result:
         """The traces so far: the kept columns (Setup.kept_columns), without a copy."""
         setup = self.setup
-        columns = tuple(TRACE_COLUMNS[i] for i in self.run.trace.columns)
+        columns = tuple(TRACE_COLUMNS[i] for i in self.run.model.trace_columns)
         units = TRACE.units()
         return Result(
             columns,
-            self.run.trace.data.T,
+            self.run.data.trace.T,
             meta={"simulation_wall_s": self.wall_s},
             description=RunDescription(
                 elements=A.PLANT.present_elements(setup.plant, keep=self.keep_elements),
@@ -487,7 +379,7 @@ class EngineRun:
         )
 
 
-def simulate(setup: "Setup", progress: Callable[[float], None] | None = None) -> Result:
+def simulate(setup: Setup, progress: Callable[[float], None] | None = None) -> Result:
     """Run ``setup`` (a :class:`emasim.sim.setup.Setup`) on the compiled engine.
 
     progress, if given, is called with the fraction done after each chunk of ticks. Returns a

@@ -118,10 +118,10 @@ CONSTANT_VALUE = 3  # index of the value in a one-term constant signal (emasim.s
 
 
 @njit(cache=True, error_model="numpy")
-def plant_substeps(t, x, u_d, u_q, p, signals, h, n, work):
+def plant_substeps(t, x, u_d, u_q, p, loads, h, n, work):
     """n sub-steps of :func:`emasim.sim.engine.plant_step` from t, as the engine runs a tick;
-    ``signals`` (emasim.sim.core.SignalArrays) holds the loads."""
-    motor_load, rod_load, rudder_load = signals.motor_load, signals.rod_load, signals.rudder_load
+    ``loads`` holds the three encoded loads (motor, rod, rudder: emasim.sim.core.Model)."""
+    motor_load, rod_load, rudder_load = loads
     for j in range(n):
         plant_step(t + j * h, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work)
 
@@ -144,7 +144,7 @@ def export_plant_fmu(path, plant=None, force: bool = False) -> Path:
     there. Variables: see the module docstring (:data:`PLANT_INPUTS`, :data:`PLANT_OUTPUTS`).
     An existing file is replaced only if it is an emasim FMU and ``force`` is set.
     """
-    from .. import __version__
+    from ..version import __version__
 
     if plant is None:
         from ..plant.presets import sea805_linkage
@@ -170,7 +170,7 @@ def export_mechanism_fmu(path, plant=None, force: bool = False) -> Path:
     in :func:`emasim.plant.linkage.rigid_pose` at the initial ``rod_position_m``. As for the
     plant FMU, emasim must be importable in the Python that runs it.
     """
-    from .. import __version__
+    from ..version import __version__
 
     if plant is None:
         from ..plant.presets import sea805_linkage

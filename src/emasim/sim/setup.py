@@ -5,8 +5,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..control.slot import Compiled, PlantFacts
-from ..interface import MEASUREMENT_NAMES
+from ..control.slot import Compiled, PlantFacts, absent_slot
+from ..interface import MEASUREMENT_NAMES, N_MEAS, N_OUT, N_REF
 from ..plant import actuator as A
 from ..plant.parameters import RPM
 from ..plant.sensors import (
@@ -24,17 +24,17 @@ from ..plant.sensors import (
 )
 from ..signals import ZERO
 from .core import (
+    FEEDBACK_ROD,
+    LOOP_POSITION,
+    LOOP_POSITION_CURRENT,
+    LOOP_SPEED,
     N_DRIVE,
-    Core,
+    Data,
     LawAddress,
-    PlantArrays,
-    SensorArrays,
-    SignalArrays,
+    Model,
     Timing,
-    TraceArrays,
     new_workspace,
 )
-from .engine import FEEDBACK_ROD, LOOP_POSITION, LOOP_POSITION_CURRENT, LOOP_SPEED
 from .trace import TRACE_COLUMNS
 
 
@@ -66,8 +66,8 @@ class Setup:
     facts: PlantFacts | None = None  # the drive's ratings, for diagnosing a divergence
     record_signals: tuple[str, ...] | None = None  # trace columns to keep (None: every one)
     delay_substeps: int = 0  # computation delay, in sub-steps (0 .. substeps)
-    feedback: int = FEEDBACK_ROD  # the position loop's sensor (engine.FEEDBACK_*)
-    rudder_to_rod: np.ndarray = field(default_factory=lambda: ZERO.copy())  # core.SensorArrays
+    feedback: int = FEEDBACK_ROD  # the position loop's sensor (core.FEEDBACK_*)
+    rudder_to_rod: np.ndarray = field(default_factory=lambda: ZERO.copy())  # core.Model
 
     def __post_init__(self):
         for name in ("sample_period_s", "duration_s"):
@@ -88,7 +88,7 @@ class Setup:
 
     @property
     def loop_structure(self) -> int:
-        """Which loops close: engine.LOOP_SPEED, LOOP_POSITION or LOOP_POSITION_CURRENT."""
+        """Which loops close: core.LOOP_SPEED, LOOP_POSITION or LOOP_POSITION_CURRENT."""
         if self.position is None:
             return LOOP_SPEED
         return LOOP_POSITION if self.position.commands == "speed" else LOOP_POSITION_CURRENT
@@ -153,33 +153,26 @@ class Setup:
         )
 
     def start(self, keep_elements: tuple[str, ...] = ()) -> "RunState":
-        """The compiled core's inputs (emasim.sim.core), with fresh copies of everything a run
+        """The compiled core's records (emasim.sim.core), with fresh copies of everything a run
         changes (plant state, slot states, play operators), and an empty trace of the columns
-        :meth:`kept_columns` names."""
-        n = self.n_ticks
-        position = self.position if self.position is not None else self.speed  # never called
-        laws = tuple(LawAddress.of(c.function) for c in (position, self.speed, self.current))
-        slots = tuple(
-            (_floats(c.params), _floats(c.state).copy())
-            for c in (position, self.speed, self.current)
-        )
-        core = Core(
-            PlantArrays(_floats(self.plant), _floats(self.limits)),
-            SignalArrays(
-                _floats(self.reference),
-                _floats(self.motor_load),
-                _floats(self.rod_load),
-                _floats(self.rudder_load),
-            ),
-            SensorArrays(
-                _floats(self.sensors),
-                initial_state(self.x0, self.plant),
-                _floats(self.rudder_to_rod),
-            ),
-            np.zeros(N_DRIVE),
-            *laws,
-            slots,
-            Timing(
+        :meth:`kept_columns` names. Without a position loop the position slot holds
+        :func:`~emasim.control.slot.absent_slot` (the loop never calls it)."""
+        position = self.position if self.position is not None else absent_slot()
+        slots = (position, self.speed, self.current)
+        kept = self.kept_columns(keep_elements)
+        rows = (self.n_ticks + self.record_every - 1) // self.record_every
+        model = Model(
+            params=_floats(self.plant),
+            limits=_floats(self.limits),
+            reference=_floats(self.reference),
+            motor_load=_floats(self.motor_load),
+            rod_load=_floats(self.rod_load),
+            rudder_load=_floats(self.rudder_load),
+            sensor_table=_floats(self.sensors),
+            rudder_to_rod=_floats(self.rudder_to_rod),
+            slot_params=tuple(_floats(c.params) for c in slots),
+            trace_columns=np.array([TRACE_COLUMNS.index(name) for name in kept], dtype=np.int64),
+            timing=Timing(
                 self.sample_period_s,
                 self.substeps,
                 self.record_every,
@@ -188,33 +181,31 @@ class Setup:
                 self.delay_substeps,
                 self.feedback,
             ),
-            new_workspace(),
         )
-        kept = self.kept_columns(keep_elements)
-        rows = (n + self.record_every - 1) // self.record_every
-        return RunState(
-            trace=TraceArrays(
-                np.full((len(kept), rows), np.nan),
-                np.array([TRACE_COLUMNS.index(name) for name in kept], dtype=np.int64),
-                np.full(len(TRACE_COLUMNS), np.nan),
-            ),
+        data = Data(
             x=_floats(self.x0).copy(),
-            core=core,
+            sensor_state=initial_state(self.x0, self.plant),
+            drive=np.zeros(N_DRIVE),
+            slot_states=tuple(_floats(c.state).copy() for c in slots),
+            work=new_workspace(),
+            meas=np.zeros(N_MEAS),
+            ref=np.zeros(N_REF),
+            out=np.zeros(N_OUT),
+            trace=np.full((len(kept), rows), np.nan),
+            trace_row=np.full(len(TRACE_COLUMNS), np.nan),
+            status=np.zeros(3, dtype=np.int64),
         )
+        laws = tuple(LawAddress.of(c.function) for c in slots)
+        return RunState(model, data, laws)
 
 
 @dataclass
 class RunState:
-    """What one run of a Setup changes: the plant state, the trace, and the core's inputs
-    (whose slot states, sensors' and drive's states change too).
+    """One run of a Setup: its records (emasim.sim.core) and the three slots' laws."""
 
-    The position slot holds the speed controller when no position loop closes (the compiled
-    loop always takes three slots; it calls the position slot only in a position loop).
-    """
-
-    trace: TraceArrays
-    x: np.ndarray
-    core: Core
+    model: Model
+    data: Data
+    laws: tuple
 
 
 def _floats(array) -> np.ndarray:

@@ -13,7 +13,6 @@ runs the FMU.
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 
-from emasim import __version__
 from emasim.plant import linkage as L
 from emasim.sim.fmi import (
     DEFAULT_STEP_S,
@@ -25,6 +24,7 @@ from emasim.sim.fmi import (
     substeps_of,
 )
 from emasim.sim.mechanism import advance
+from emasim.version import __version__
 
 
 class EmasimMechanism(Fmi2Slave):

@@ -10,10 +10,9 @@ be importable in the Python that runs the FMU.
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 
-from emasim import __version__
 from emasim.plant import actuator as A
 from emasim.signals import Constant, encode
-from emasim.sim.core import SignalArrays, new_workspace
+from emasim.sim.core import new_workspace
 from emasim.sim.fmi import (
     CONSTANT_VALUE,
     DEFAULT_STEP_S,
@@ -27,6 +26,7 @@ from emasim.sim.fmi import (
     register_step_and_inputs,
     substeps_of,
 )
+from emasim.version import __version__
 
 
 class EmasimPlant(Fmi2Slave):
@@ -44,7 +44,7 @@ class EmasimPlant(Fmi2Slave):
         if self.p.size != A.N_PARAMS or self.x.size != A.N_STATE:
             raise ValueError(f"{PLANT_RESOURCE} does not fit this emasim ({__version__})")
         self.work = new_workspace()
-        self.signals = SignalArrays(*(encode([Constant(value=0.0)]) for _ in range(4)))
+        self.loads = tuple(encode([Constant(value=0.0)]) for _ in range(3))  # motor, rod, rudder
         self.step_s = DEFAULT_STEP_S
         self.ud_V = self.uq_V = self.load_torque_Nm = self.rod_force_N = 0.0
         self.rudder_torque_Nm = 0.0
@@ -71,11 +71,12 @@ class EmasimPlant(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         n = substeps_of(step_size, self.step_s)
-        self.signals.motor_load[CONSTANT_VALUE] = self.load_torque_Nm
-        self.signals.rod_load[CONSTANT_VALUE] = self.rod_force_N
-        self.signals.rudder_load[CONSTANT_VALUE] = self.rudder_torque_Nm
+        motor_load, rod_load, rudder_load = self.loads
+        motor_load[CONSTANT_VALUE] = self.load_torque_Nm
+        rod_load[CONSTANT_VALUE] = self.rod_force_N
+        rudder_load[CONSTANT_VALUE] = self.rudder_torque_Nm
         u_d, u_q = self.ud_V, self.uq_V
         plant_substeps(
-            current_time, self.x, u_d, u_q, self.p, self.signals, step_size / n, n, self.work
+            current_time, self.x, u_d, u_q, self.p, self.loads, step_size / n, n, self.work
         )
         return bool(np.all(np.isfinite(self.x)))
