@@ -8,20 +8,25 @@ from emasim.analysis.components import (
     TUNED,
     component_lines,
 )
-from emasim.experiments.components import component_runs
+from emasim.experiments.components import component_jobs
 from emasim.scenarios.loader import load_scenario
 
 
 def test_each_component_run_is_the_tuned_hybrid_with_one_thing_changed():
     chosen = {name: load_scenario(name) for name in ("bench-step", "bench-sine", "speed-step")}
-    runs = component_runs(chosen)
-    assert [(n, c) for n, c, _ in runs] == [
+    jobs = component_jobs(chosen)
+    assert [(j.tags["experiment"], j.tags["component"]) for j in jobs] == [
         (n, c) for n in ("bench-step", "bench-sine") for c in COMPONENTS
     ]  # the bench experiments only, every component
+    assert all(j.label == j.tags["component"] for j in jobs)  # its Result says which
     for name in ("bench-step", "bench-sine"):
         sets = dict(chosen[name].variants())
         hybrid, pid = sets["hybrid"].controllers, sets["PID"].controllers
-        by = {c: sc.controllers for n, c, sc in runs if n == name}
+        by = {
+            j.tags["component"]: j.scenario.controllers
+            for j in jobs
+            if j.tags["experiment"] == name
+        }
         assert by[TUNED] == hybrid
         assert by["RBF off"].position.adaptation_gain == 0.0
         assert by["RBF off"].speed == hybrid.speed

@@ -21,7 +21,7 @@ lumped rudder (preset sea805-linkage's drive: its speed limit, the rudder stage'
 
 from ..plant.presets import PRESETS, bench_digital_sensors, bench_sensors
 from ..scenarios.schema import Scenario
-from .batch import run_all
+from .batch import Job, run_jobs
 
 STAGES = (
     ("lumped", "the SEA805 on the lumped rudder stage, rod feedback, an ideal digital loop"),
@@ -102,23 +102,23 @@ def ablation(
     gives the last stage's metrics when the scenario itself has already run; ``labels``, when
     given, the controller sets to run (the ablation's tables compare PID and the hybrid)."""
     known = known or {}
-    runs = ablation_runs(scenarios, known, labels)
-    results = run_all([run[3] for run in runs], labels=[run[2] for run in runs])
-    return ablation_table(scenarios, runs, results, known, labels)
+    jobs = ablation_jobs(scenarios, known, labels)
+    return ablation_table(scenarios, jobs, run_jobs(jobs), known, labels)
 
 
-def ablation_runs(
+def ablation_jobs(
     scenarios: dict[str, Scenario], known=(), labels: tuple[str, ...] = ()
-) -> list[tuple[str, str, str, Scenario]]:
-    """The ablation's runs, (experiment, stage, label, single-set scenario), of every stage
-    of each scenario but the last stage of the experiments in ``known`` (already run)."""
+) -> list[Job]:
+    """The ablation's runs, each a set's single-set scenario at a stage (tags ``experiment``
+    and ``stage``), of every stage of each scenario but the last stage of the experiments in
+    ``known`` (already run)."""
     runs = []
     for name, scenario in scenarios.items():
         for stage, staged in stage_scenarios(scenario):
             if stage == STAGES[-1][0] and name in known:
                 continue
             runs.extend(
-                (name, stage, label, single)
+                Job(single, label, {"experiment": name, "stage": stage})
                 for label, single in staged.variants()
                 if not labels or label in labels
             )
@@ -127,16 +127,16 @@ def ablation_runs(
 
 def ablation_table(
     scenarios: dict[str, Scenario],
-    runs: list[tuple],
+    jobs: list[Job],
     results: list,
     known: dict,
     labels: tuple[str, ...] = (),
 ) -> dict:
-    """{experiment: {stage: {label: metrics}}} from the Results of :func:`ablation_runs`'
-    ``runs`` and the ``known`` metrics of the last stage (see :func:`ablation`)."""
+    """{experiment: {stage: {label: metrics}}} from the Results of :func:`ablation_jobs`'
+    ``jobs`` and the ``known`` metrics of the last stage (see :func:`ablation`)."""
     out = {name: {stage: {} for stage, _ in STAGES} for name in scenarios}
-    for (name, stage, label, _), result in zip(runs, results, strict=True):
-        out[name][stage][label] = result.metrics
+    for job, result in zip(jobs, results, strict=True):
+        out[job.tags["experiment"]][job.tags["stage"]][job.label] = result.metrics
     for name, metrics in known.items():
         if name in out:
             out[name][STAGES[-1][0]] = {

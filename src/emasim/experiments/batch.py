@@ -8,6 +8,10 @@ process (a comparison of a few runs: no process to start, and the compiled loop 
 while it integrates). :func:`map_runs` sends the jobs, hands each result to ``on_done`` as it
 finishes, and returns them in order. Results do not depend on the schedule: numba's noise
 generator is per thread and seeded at the start of each run.
+
+A facility's runs are :class:`Job` records (a single-set scenario, its label, and tags naming
+where its result belongs: the experiment, the stage, the clearance, the component), run by
+:func:`run_jobs`; their results are read back by those names, never by position in a tuple.
 """
 
 import asyncio
@@ -17,9 +21,10 @@ import logging
 import os
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
 from ..sim.cosim import check_fmu_trust
@@ -212,6 +217,26 @@ def _slots(client) -> int:
 
 def _run_group(function, jobs: list[tuple]) -> list:
     return [function(*job) for job in jobs]
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a many-run facility: a single-set ``scenario``, the ``label`` its Result
+    carries, and ``tags`` naming where the result belongs (module docstring)."""
+
+    scenario: "Scenario"
+    label: str | None = None
+    tags: Mapping[str, Any] = field(default_factory=dict)
+
+
+def run_jobs(jobs: list[Job], client=None, progress=None) -> list[Result]:
+    """The Results of ``jobs``, in their order (:func:`run_all`)."""
+    return run_all(
+        [job.scenario for job in jobs],
+        labels=[job.label for job in jobs],
+        client=client,
+        progress=progress,
+    )
 
 
 def run_all(scenarios, labels=None, trust_fmu: bool = False, client=None, progress=None) -> list:

@@ -27,6 +27,7 @@ from ..analysis.components import (
 )
 from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from ..analysis.report import TRUE_PREFIX
+from .batch import Job
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
@@ -45,9 +46,9 @@ PARTS = dict(  # part -> (position loop changes, speed loop changes), in PART_NA
 )
 
 
-def component_runs(chosen: dict[str, "Scenario"]) -> list[tuple[str, str, "Scenario"]]:
-    """(experiment, component, single-set scenario) for every component of COMPONENTS, on
-    each chosen bench experiment that compares the hybrid with PID."""
+def component_jobs(chosen: dict[str, "Scenario"]) -> list[Job]:
+    """The run of every component of COMPONENTS (its label, tags ``experiment`` and
+    ``component``), on each chosen bench experiment that compares the hybrid with PID."""
     runs = []
     for name, scenario in chosen.items():
         sets = dict(scenario.variants())
@@ -67,13 +68,8 @@ def component_runs(chosen: dict[str, "Scenario"]) -> list[tuple[str, str, "Scena
                 }
             )
         for component in COMPONENTS:
-            runs.append(
-                (
-                    name,
-                    component,
-                    sets[HYBRID_LABEL].model_copy(update={"controllers": crossed[component]}),
-                )
-            )
+            single = sets[HYBRID_LABEL].model_copy(update={"controllers": crossed[component]})
+            runs.append(Job(single, component, {"experiment": name, "component": component}))
     return runs
 
 
@@ -86,14 +82,15 @@ def _row(component: str, metrics: dict, figures: list[str]) -> dict:
     return row
 
 
-def component_tables(runs: list[tuple], results: list, metrics: dict) -> dict[str, list[dict]]:
+def component_tables(jobs: list[Job], results: list, metrics: dict) -> dict[str, list[dict]]:
     """experiment key ('bench_step') -> rows {component, <figure>: value, true_<figure>:
     value}: the component runs' headline figures (measured, and of the true angle), with
     PID's own (``metrics``: experiment name -> label -> metrics) as the last row."""
     tables = {}
-    for (name, component, _), result in zip(runs, results, strict=True):
-        key = name.replace("-", "_")
-        tables.setdefault(key, []).append(_row(component, result.metrics, figures_of(key)))
+    for job, result in zip(jobs, results, strict=True):
+        key = job.tags["experiment"].replace("-", "_")
+        row = _row(job.tags["component"], result.metrics, figures_of(key))
+        tables.setdefault(key, []).append(row)
     for key, rows in tables.items():
         pid = metrics[key.replace("_", "-")][PID_LABEL]
         rows.append(_row(PID_LABEL, pid, figures_of(key)))

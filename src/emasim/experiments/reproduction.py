@@ -8,7 +8,6 @@ import math
 import time
 from functools import partial
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from ..analysis.paper_report import (
@@ -25,44 +24,44 @@ from ..errors import InputError
 from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
 from ..scenarios.loader import load_scenario
 from . import verdict_map, wear
-from .ablation import STAGES, ablation_runs, ablation_table
-from .batch import comparison_of, run_all
-from .components import component_runs, component_tables
+from .ablation import STAGES, ablation_jobs, ablation_table
+from .batch import Job, comparison_of, run_jobs
+from .components import component_jobs, component_tables
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
 from .uncertainty import markdown as uncertainty_table
 
-if TYPE_CHECKING:
-    from ..scenarios.schema import Scenario
-
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
 
 
-def sweep_runs() -> list[tuple[float, str, "Scenario"]]:
-    """The hinge clearance sweep's runs, (clearance, label, single-set scenario): cosim-step
-    at every hinge clearance of SWEEP_CLEARANCES_MM, the whole run long (its limit cycle starts
-    about 2 s in), for every controller set."""
+def sweep_jobs() -> list[Job]:
+    """The hinge clearance sweep's runs (tag ``clearance_mm``): cosim-step at every hinge
+    clearance of SWEEP_CLEARANCES_MM, the whole run long (its limit cycle starts about 2 s
+    in), for every controller set."""
     runs = []
     for clearance in SWEEP_CLEARANCES_MM:
         scenario = load_scenario(
             "cosim-step",
             settings=[f"plant.linkage.hinge_clearance_mm=[{', '.join([str(clearance)] * 4)}]"],
         )
-        runs += [(clearance, label, variant) for label, variant in scenario.variants()]
+        runs += [
+            Job(variant, label, {"clearance_mm": clearance})
+            for label, variant in scenario.variants()
+        ]
     return runs
 
 
-def sweep_rows(runs: list[tuple], results: list) -> list[dict]:
-    """The sweep's table from the Results of :func:`sweep_runs`' ``runs``: steady RMS error
+def sweep_rows(jobs: list[Job], results: list) -> list[dict]:
+    """The sweep's table from the Results of :func:`sweep_jobs`' ``jobs``: steady RMS error
     and vibration amplitude of the rudder, per clearance and controller set."""
     return [
         {
-            "clearance_mm": clearance,
-            "controller": label,
+            "clearance_mm": job.tags["clearance_mm"],
+            "controller": job.label,
             "steady_error_rms_deg": result.metrics["steady_error_rms_deg"],
             "chatter_amplitude_deg": result.metrics["chatter_amplitude_deg"],
         }
-        for (clearance, label, _), result in zip(runs, results, strict=True)
+        for job, result in zip(jobs, results, strict=True)
     ]
 
 
@@ -76,21 +75,22 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
     labels = (PID_LABEL, HYBRID_LABEL)
     ablated = {n: chosen[n] for n in ABLATED if n in chosen} if with_ablation else {}
     groups = {
-        "comparisons": [(name, *v) for name, sc in chosen.items() for v in sc.variants()],
-        "sweep": sweep_runs() if "cosim-step" in chosen else [],
-        "ablation": ablation_runs(ablated, ablated, labels=labels),
-        "components": component_runs(chosen),
+        "comparisons": [
+            Job(variant, label, {"experiment": name})
+            for name, sc in chosen.items()
+            for label, variant in sc.variants()
+        ],
+        "sweep": sweep_jobs() if "cosim-step" in chosen else [],
+        "ablation": ablation_jobs(ablated, ablated, labels=labels),
+        "components": component_jobs(chosen),
     }
-    runs = [run for group in groups.values() for run in group]
     start = time.perf_counter()
-    results = iter(
-        run_all([run[-1] for run in runs], labels=[run[-2] for run in runs], progress=progress)
-    )
+    results = iter(run_jobs([job for group in groups.values() for job in group], progress=progress))
     wall_s = time.perf_counter() - start
     done = {key: [next(results) for _ in group] for key, group in groups.items()}
     by_name = {name: {} for name in chosen}
-    for (name, label, _), result in zip(groups["comparisons"], done["comparisons"], strict=True):
-        by_name[name][label] = result
+    for job, result in zip(groups["comparisons"], done["comparisons"], strict=True):
+        by_name[job.tags["experiment"]][job.label] = result
     comparisons = {name: comparison_of(chosen[name], by_name[name], wall_s) for name in chosen}
     tables = build_tables({name: c.metrics for name, c in comparisons.items()})
     if groups["sweep"]:
