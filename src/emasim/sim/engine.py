@@ -198,7 +198,7 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
     """Advance x by one RK4 sub-step h with the voltages held; ``work`` is a
     :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
 
-    The loads come as the three encoded signals, not as the SignalArrays record: passing a
+    The loads come as the three encoded signals, not as the Model record: passing a
     record into this function, called at every sub-step, costs 15 % of the lumped loop
     (measured: 0.87 against 0.75 us per sub-step, interleaved in one process).
 
