@@ -241,7 +241,9 @@ def test_the_structure_force_is_the_rate_of_the_chains_momentum():
         structure = -K_ANCHOR * x[A.X_XH] - damping * x[A.X_VH]
         scale = max(abs(v) for v in terms)
         assert sum(terms) == pytest.approx(structure, abs=1e-12 * scale)
-        assert out[A.O_ANCHORAGE] == pytest.approx(structure, rel=1e-14)
-        stops_hit += A.rod_stop_force(x, p) != 0.0
-        assert A.rudder_stop_torque(*A.rudder_motion(x, p), p) == 0.0  # no external torque
+        assert out[A.PLANT.outputs.index("anchorage_force_N")] == pytest.approx(
+            structure, rel=1e-14
+        )
+        stops_hit += A.output("end_stop_force_N")(x, p) != 0.0
+        assert A.output("rudder_stop_torque_Nm")(x, p) == 0.0  # no external torque
     assert stops_hit == 2  # the rod's stops took part

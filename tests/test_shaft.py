@@ -95,14 +95,14 @@ def angles(plant, states):
 def sensor_torques(plant, states):
     """The torque sensor's reading, shaft_torque_of, along a trajectory (N m)."""
     p = plant.pack()
-    return np.array([A.shaft_torque_of(x, p) for x in states])
+    return np.array([A.output("shaft_torque_Nm")(x, p) for x in states])
 
 
 def assert_no_contact(plant, states):
     """The motor never moved and the gap never closed: the stage was free."""
     p = plant.pack()
     assert np.all(states[:, [A.X_THETA, A.X_WM]] == 0.0)
-    assert all(A.backlash_force(x, p) == 0.0 for x in states)
+    assert all(A.drivetrain_force(x, p) == 0.0 for x in states)
 
 
 def test_the_free_stage_rings_in_the_two_mass_torsion_mode():
@@ -207,9 +207,9 @@ def test_the_disk_and_the_rocker_feel_the_shaft_torque_in_the_rhs():
         torque = K_SHAFT * (x_l / r - theta_d) + damping * (v_l / r - omega_d)
         A.rhs(x, 0.0, 0.0, 0.0, 0.0, load, p, dx, hinges)
         A.plant_outputs(x, p, out)
-        assert A.backlash_force(x, p) == 0.0
+        assert A.drivetrain_force(x, p) == 0.0
         assert dx[A.X_DISK] == omega_d
         assert J_DISK * dx[A.X_DISK_RATE] == pytest.approx(torque - load, rel=1e-12)
         assert rod_mass(plant) * r * dx[A.X_VL] == pytest.approx(-torque, rel=1e-12)
-        assert out[A.O_SHAFT] == pytest.approx(torque, rel=1e-14)
-        assert A.shaft_torque_of(x, p) == pytest.approx(torque, rel=1e-14)
+        assert out[A.PLANT.outputs.index("shaft_torque_Nm")] == pytest.approx(torque, rel=1e-14)
+        assert A.output("shaft_torque_Nm")(x, p) == pytest.approx(torque, rel=1e-14)

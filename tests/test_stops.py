@@ -142,7 +142,9 @@ def test_a_rod_thrown_onto_its_stop_rebounds_with_the_laws_restitution():
             A.plant_outputs(x, p, outputs)
             law = -contact_law(x[A.X_XL], x[A.X_VL], half, K_STOP, damping)
             assert x[A.X_XL] > half and law != 0.0
-            assert outputs[A.O_END_STOP] == pytest.approx(law, rel=1e-12)
+            assert outputs[A.PLANT.outputs.index("end_stop_force_N")] == pytest.approx(
+                law, rel=1e-12
+            )
         assert j < 100_000
     e = -x[A.X_VL] / v_in
     assert worst_nut < 0.5 * WIDE_GAP_MM * 1e-3  # the gap never closed: the stop alone acted
@@ -172,7 +174,9 @@ def test_a_rod_pushed_onto_its_stop_sinks_in_by_f_over_k(end):
     assert abs(x[A.X_VL]) < 1e-9
     outputs = np.empty(A.N_OUTPUTS)
     A.plant_outputs(x, plant.pack(), outputs)
-    assert outputs[A.O_END_STOP] == pytest.approx(-end * force, rel=1e-9)
+    assert outputs[A.PLANT.outputs.index("end_stop_force_N")] == pytest.approx(
+        -end * force, rel=1e-9
+    )
 
 
 RUDDER_LIMIT_DEG = 10.0  # inside the +-30 deg of the stroke: the rudder's stop acts first
@@ -206,9 +210,15 @@ def test_the_rudder_stop_torque_is_the_law_beyond_the_limit():
     for theta, omega, expected in cases:
         x = rod_state(plant, theta * arm, omega * arm)
         A.plant_outputs(x, p, outputs)
-        assert outputs[A.O_RUDDER_STOP] == pytest.approx(expected, rel=1e-9, abs=1e-9)
-        assert A.rudder_stop_torque(theta, omega, p) == pytest.approx(expected, rel=1e-9, abs=1e-9)
-        assert outputs[A.O_END_STOP] == 0.0  # the rod is well inside its stroke
+        assert outputs[A.PLANT.outputs.index("rudder_stop_torque_Nm")] == pytest.approx(
+            expected, rel=1e-9, abs=1e-9
+        )
+        assert A.output("rudder_stop_torque_Nm")(x, p) == pytest.approx(
+            expected, rel=1e-9, abs=1e-9
+        )
+        assert (
+            outputs[A.PLANT.outputs.index("end_stop_force_N")] == 0.0
+        )  # the rod is well inside its stroke
 
 
 def test_a_rudder_pushed_onto_its_stop_rests_at_the_closed_form_angle():
@@ -227,9 +237,11 @@ def test_a_rudder_pushed_onto_its_stop_rests_at_the_closed_form_angle():
     assert theta - limit > 4e-3  # it did sink in (4.8 mrad)
     outputs = np.empty(A.N_OUTPUTS)
     A.plant_outputs(x, plant.pack(), outputs)
-    assert outputs[A.O_RUDDER_STOP] == pytest.approx(-force * arm, rel=1e-9)
-    assert outputs[A.O_END_STOP] == 0.0
-    assert outputs[A.O_RUDDER] == theta
+    assert outputs[A.PLANT.outputs.index("rudder_stop_torque_Nm")] == pytest.approx(
+        -force * arm, rel=1e-9
+    )
+    assert outputs[A.PLANT.outputs.index("end_stop_force_N")] == 0.0
+    assert outputs[A.PLANT.outputs.index("rudder_angle_rad")] == theta
 
 
 def test_a_run_inside_the_stroke_is_the_run_without_stops_to_the_bit():

@@ -60,6 +60,11 @@ def configure() -> Path:
     return folder
 
 
+def configured_folder() -> Path:
+    """The keyed folder :func:`configure` chose (it runs when emasim is imported)."""
+    return _configured[0] if _configured else configure()
+
+
 def engine_subfolder(folder: Path) -> Path:
     """Where numba caches ``sim/engine.py`` of this installation inside ``folder``: numba names
     the sub-folder by the source's folder, ``<name>_<sha1 of its absolute path>`` (its

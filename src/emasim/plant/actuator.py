@@ -25,34 +25,40 @@ and the linkage's 16 states follow the drive's rod. The series compliance
 a load torque on the motor shaft (the paper's TL), F_L(t) an external force on the rod and
 T(t) the rudder load; all three are evaluated by the caller.
 
-States and parameters are flat float64 arrays indexed by the constants below, which are looked
-up by name in the elements' declarations (emasim.plant.element): the layouts are assembled from
-:data:`ELEMENTS`, never kept by hand. An absent element's states stay zero.
+Each element declares these terms itself (its bodies, couplings, laws, forces and rates:
+emasim.plant.element); :data:`rhs`, :data:`plant_outputs` and :data:`active_states` are
+generated from :data:`ELEMENTS` by emasim.plant.assembly. States and parameters are flat
+float64 arrays whose indices are looked up by name in the same declarations. An absent
+element's states stay zero.
 """
-
-import numpy as np
 
 from ..jit import njit
 from . import friction as fr
 from . import linkage as L
-from .anchorage import ANCHORAGE, anchorage_force
-from .backlash import BACKLASH, dead_zone_force
-from .compliance import COMPLIANCE, spring_force
-from .drivetrain import TRANSMISSION, reflected_torque
+from .anchorage import ANCHORAGE
+from .assembly import load
+from .backlash import BACKLASH
+from .compliance import COMPLIANCE
+from .drivetrain import TRANSMISSION
 from .element import (
+    Body,
     Element,
+    Law,
     Quantity,
     State,
     assemble,
     rod_position_bound,
     rod_velocity_bound,
+    total,
+    viscous_force,
 )
 from .friction import FRICTION
-from .load_motor import LOAD_MOTOR, load_motor_rate
-from .motor import MOTOR, electromagnetic_torque, inverter_current_rates
+from .linkage import LOAD_HELD, LOAD_LINKAGE, LOAD_LUMPED  # noqa: F401 - part of this API
+from .load_motor import LOAD_MOTOR
+from .motor import MOTOR
 from .ratings import RATINGS
-from .shaft import RUDDER_SHAFT, shaft_torque
-from .stops import END_STOPS, stop_force
+from .shaft import RUDDER_SHAFT
+from .stops import END_STOPS
 
 ROD = Element(
     "rod",
@@ -74,7 +80,36 @@ ROD = Element(
         Quantity("rudder_arm_m", "m", "lumped stage: rudder angle = x_L / arm"),
         Quantity("load_model", "1", "LOAD_LUMPED or LOAD_LINKAGE"),
     ),
-    outputs=(Quantity("rudder_angle_rad", "rad", "rudder angle"),),
+    outputs=(
+        Quantity("rudder_angle_rad", "rad", "rudder angle"),
+        Quantity("drivetrain_force_N", "N", "force of the drive train on the rod"),
+    ),
+    # M_L dv_L/dt = F_drive + F_stop + F_axial - F_L + F_lever - c_L v_L (+ r phi'^2 M_L)
+    bodies=(
+        Body(
+            "rod",
+            "actuator_position_m",
+            "actuator_velocity_m_s",
+            "load_mass_kg",
+            order=(
+                "fold_far",
+                "compliance",
+                "end_stops",
+                "linkage__axial",
+                "f_load",
+                "linkage__lever",
+                "rod",
+            ),
+        ),
+    ),
+    laws=(
+        Law(viscous_force, ("p.load_viscous_Ns_per_m", "rod.v"), ("viscous",)),
+        # what a load cell on the rod reads: the compliance spring's push, or without the
+        # compliance what the gap passes on to the rod
+        Law(total, ("far|rod.fold", "-compliance.force"), ("drive_force",), always=True),
+    ),
+    forces=(("rod", "-in.f_load"), ("rod", "-viscous")),
+    values=(("rudder_angle_rad", "rocker.x"), ("drivetrain_force_N", "drive_force")),
 )
 
 # the plant's elements, in the order of the state and parameter vectors (optional elements
@@ -95,6 +130,10 @@ ELEMENTS = (
     L.LINKAGE,
 )
 PLANT = assemble(ELEMENTS)
+GENERATED = load(PLANT, hold=("load_model", LOAD_HELD))
+rhs = GENERATED.rhs  # (x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges): dx/dt of x
+plant_outputs = GENERATED.plant_outputs  # (x, p, out): every element output of x
+active_states = GENERATED.active_states  # (p): the states that move
 STATE_NAMES = PLANT.states.names
 N_STATE = len(PLANT.states)
 N_PARAMS = len(PLANT.params)
@@ -107,7 +146,6 @@ X_WM = PLANT.states.index("motor_speed_rad_s")
 X_Z = PLANT.states.index("bristle_state_rad")
 X_XL = PLANT.states.index("actuator_position_m")
 X_VL = PLANT.states.index("actuator_velocity_m_s")
-X_DRIVE_END = PLANT.state_offset["compliance"]  # the states every plant integrates
 X_XN = PLANT.states.index("compliance_node_position_m")
 X_VN = PLANT.states.index("compliance_node_velocity_m_s")
 X_XH = PLANT.states.index("housing_position_m")
@@ -180,36 +218,15 @@ P_LM_MAX = PLANT.params.index("load_motor_max_torque_Nm")
 P_LINK = PLANT.param_offset["linkage"]  # the linkage's parameters (emasim.plant.linkage layout)
 P_LINK_END = P_LINK + L.N_LINK_PARAMS
 
-LOAD_LUMPED = 0
-LOAD_LINKAGE = 1
-LOAD_HELD = 2  # the rod alone; the rudder side is solved elsewhere (a co-simulation's mechanism)
-# and its states are held in x between exchanges
-
-FRICTION_NONE = 0
-FRICTION_COULOMB = 1
-FRICTION_LUGRE = 2
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def friction(w, z, p):
-    """Friction torque on the motor shaft (N*m) and bristle rate dz/dt (rad/s).
-
-    dz/dt is zero unless the LuGre model is selected.
-    """
-    model = int(p[P_FRICTION])
-    if model == FRICTION_LUGRE:
-        return fr.lugre_force(
-            z, w, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0], p[P_SIGMA1], p[P_SIGMA2]
-        )
-    if model == FRICTION_COULOMB:
-        return fr.coulomb_viscous_force(w, p[P_TC], p[P_W_SMOOTH], p[P_SIGMA2]), 0.0
-    return 0.0, 0.0
+FRICTION_NONE = fr.FRICTION_NONE
+FRICTION_COULOMB = fr.FRICTION_COULOMB
+FRICTION_LUGRE = fr.FRICTION_LUGRE
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def bristle_step(z0, w, h, p):
     """Exact bristle update over h with the speed w held (see friction.bristle_update)."""
-    if int(p[P_FRICTION]) != FRICTION_LUGRE:
+    if p[P_FRICTION] != FRICTION_LUGRE:
         return z0
     return fr.bristle_update(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
@@ -217,207 +234,18 @@ def bristle_step(z0, w, h, p):
 @njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, w, h, p):
     """Exact bristle states after h/2 and h with the speed w held (LuGre only)."""
-    if int(p[P_FRICTION]) != FRICTION_LUGRE:
+    if p[P_FRICTION] != FRICTION_LUGRE:
         return z0, z0
     return fr.bristle_half_and_full_step(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def backlash_force(x, p):
-    """Contact force Fb across the backlash gap (N), positive when the screw pushes forward:
-    on the rod, or on the compliance's node when the plant has one. The nut sits at
-    x_h + K theta_m (x_h = 0 without the anchorage)."""
-    k = p[P_K]
-    if p[P_COMPLIANCE] != 0.0:
-        far_x, far_v = x[X_XN], x[X_VN]
-    else:
-        far_x, far_v = x[X_XL], x[X_VL]
-    return dead_zone_force(
-        k * x[X_THETA] + x[X_XH] - far_x,
-        k * x[X_WM] + x[X_VH] - far_v,
-        p[P_HALF_GAP],
-        p[P_KB],
-        p[P_CB],
-    )
+def output(name: str):
+    """The compiled ``(x, p) -> value`` of one element output (a column of PLANT.outputs)."""
+    return getattr(GENERATED, f"output_{name}")
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def compliance_force(x, p):
-    """The series spring-damper's force on the rod (N); NaN without the element."""
-    if p[P_COMPLIANCE] == 0.0:
-        return np.nan
-    return spring_force(x[X_XN], x[X_VN], x[X_XL], x[X_VL], p[P_KS], p[P_CS])
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def drivetrain_force(x, p):
-    """The force the drive train puts on the rod (N): what a load cell on the rod reads (the
-    spring's with the compliance, the gap's without)."""
-    if p[P_COMPLIANCE] != 0.0:
-        return compliance_force(x, p)
-    return backlash_force(x, p)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def rod_stop_force(x, p):
-    """Force of the rod's end stops on the rod (N), on its extension relative to the body;
-    0 without the stops."""
-    if p[P_STOPS] == 0.0:
-        return 0.0
-    return stop_force(
-        x[X_XL] - x[X_XH], x[X_VL] - x[X_VH], p[P_HALF_STROKE], p[P_K_STOP], p[P_C_STOP]
-    )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def rudder_motion(x, p):
-    """Rudder (rocker arm) angle (rad) and rate (rad/s): the linkage's (integrated, or held by
-    a co-simulation), or the rod's through the lumped stage's arm."""
-    if p[P_LOAD_MODEL] != LOAD_LUMPED:
-        return x[X_LINK + L.TD], x[X_LINK + L.N_POS + L.TD]
-    return x[X_XL] / p[P_ARM], x[X_VL] / p[P_ARM]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def rudder_stop_torque(theta, omega, p):
-    """Torque of the rudder's stops on the rudder (N m); 0 without the stops."""
-    if p[P_STOPS] == 0.0:
-        return 0.0
-    return stop_force(theta, omega, p[P_RUDDER_LIMIT], p[P_K_RUDDER_STOP], p[P_C_RUDDER_STOP])
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def shaft_torque_of(x, p):
-    """Torque in the rudder shaft (N m, the torque sensor's reading); NaN without it."""
-    if p[P_SHAFT] == 0.0:
-        return np.nan
-    theta, omega = rudder_motion(x, p)
-    return shaft_torque(theta, omega, x[X_DISK], x[X_DISK_RATE], p[P_KT], p[P_CT])
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def rudder_side(x, t_rudder, p, dx):
-    """Torque on the rocker arm (N m, driving positive deflection) from the rudder's stops
-    and the load, through the shaft's torsion when the plant has it; writes the derivatives of
-    the disk's and the load motor's states when the plant has any of the three (zero for an
-    absent one; a plant with none leaves those rows as they are, zero in a fresh workspace).
-    t_rudder is the scenario's rudder load T(t), opposing positive deflection."""
-    if p[P_LOAD_MOTOR] == 0.0 and p[P_SHAFT] == 0.0 and p[P_STOPS] == 0.0:
-        return -t_rudder  # the ideal load alone
-    theta, omega = rudder_motion(x, p)
-    if p[P_LOAD_MOTOR] != 0.0:
-        at = x[X_DISK] if p[P_SHAFT] != 0.0 else theta
-        dx[X_TLM] = load_motor_rate(
-            x[X_TLM], t_rudder, at, p[P_LM_TAU], p[P_LM_SPRING], p[P_LM_PRELOAD], p[P_LM_MAX]
-        )
-        t_load = x[X_TLM]
-    else:
-        dx[X_TLM] = 0.0
-        t_load = t_rudder
-    t_stop = rudder_stop_torque(theta, omega, p)
-    if p[P_SHAFT] != 0.0:
-        t_shaft = shaft_torque(theta, omega, x[X_DISK], x[X_DISK_RATE], p[P_KT], p[P_CT])
-        dx[X_DISK] = x[X_DISK_RATE]
-        dx[X_DISK_RATE] = (t_shaft - t_load) / p[P_JD]
-        return t_stop - t_shaft
-    dx[X_DISK] = dx[X_DISK_RATE] = 0.0
-    return t_stop - t_load
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def motor_torque(x, p):
-    """Electromagnetic torque Te (N*m) of the state x."""
-    return electromagnetic_torque(x[X_ID], x[X_IQ], p[P_NP], p[P_LD], p[P_LQ], p[P_PSI])
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges):
-    """Write dx/dt of the actuator into ``dx``.
-
-    x state; (u_d, u_q) the stator voltages commanded of the inverter (V), applied through
-    its current limit (motor.inverter_current_rates); t_load the load torque TL on the motor
-    shaft (N*m); f_load the external force F_L on the rod (N); t_rudder the rudder load T(t)
-    (N*m, opposing positive deflection: on the linkage's rudder shaft, or through the lumped
-    stage's arm, or the load motor's command); p parameters. ``hinges`` (N_HINGES x 2)
-    receives the linkage's hinge penetrations and normal forces (untouched with the lumped
-    rudder).
-    """
-    w = x[X_WM]
-    w_e = p[P_NP] * w
-    did, diq = inverter_current_rates(
-        x[X_ID], x[X_IQ], u_d, u_q, w_e, p[P_RS], p[P_LD], p[P_LQ], p[P_PSI], p[P_IMAX], p[P_UDC]
-    )
-    f_b = backlash_force(x, p)
-    t_friction, z_rate = friction(w, x[X_Z], p)
-    t_net = (
-        motor_torque(x, p)
-        - p[P_B] * w
-        - t_friction
-        - t_load
-        - reflected_torque(f_b, w, p[P_K], p[P_ETA])
-    )
-    dx[X_ID] = did
-    dx[X_IQ] = diq
-    dx[X_THETA] = w
-    dx[X_WM] = t_net / p[P_J]
-    dx[X_Z] = z_rate
-    f_rod = f_b
-    if p[P_COMPLIANCE] != 0.0:
-        f_rod = compliance_force(x, p)
-        dx[X_XN] = x[X_VN]
-        dx[X_VN] = (f_b - f_rod) / p[P_MN]
-    else:
-        dx[X_XN] = dx[X_VN] = 0.0
-    f_stop = rod_stop_force(x, p)
-    if p[P_ANCHORAGE] != 0.0:
-        dx[X_XH] = x[X_VH]
-        f_mount = anchorage_force(x[X_XH], x[X_VH], p[P_KA], p[P_CA])
-        dx[X_VH] = (f_mount - f_b - f_stop) / p[P_MH]
-    else:
-        dx[X_XH] = dx[X_VH] = 0.0
-    dx[X_XL] = x[X_VL]
-    if p[P_LOAD_MODEL] == LOAD_HELD:
-        for i in range(X_MECHANISM, N_STATE):
-            dx[i] = 0.0
-        dx[X_VL] = (f_rod + f_stop - f_load - p[P_CL] * x[X_VL]) / p[P_ML]
-        return
-    t_rocker = rudder_side(x, t_rudder, p, dx)
-    if p[P_LOAD_MODEL] == LOAD_LINKAGE:
-        q = p[P_LINK:P_LINK_END]
-        y, dy = x[X_LINK:X_LINK_END], dx[X_LINK:X_LINK_END]
-        f_axial = L.linkage_rhs(y, x[X_XL], x[X_VL], t_rocker, q, dy, hinges)
-        swing = x[X_LINK + L.N_POS + L.PHI]
-        centripetal = (q[L.L0] + x[X_XL]) * swing * swing
-        dx[X_VL] = (f_rod + f_stop + f_axial - f_load - p[P_CL] * x[X_VL]) / p[P_ML] + centripetal
-    else:
-        f_rudder = t_rocker / p[P_ARM]
-        dx[X_VL] = (f_rod + f_stop - f_load + f_rudder - p[P_CL] * x[X_VL]) / p[P_ML]
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def active_states(p):
-    """How many states move: up to the end of the plant's last element (the drive's
-    X_DRIVE_END with none of the optional ones). The absent elements before it keep their
-    states at zero: rhs sets their derivatives to zero. With LOAD_HELD the rudder side does
-    not move in this loop: a co-simulation holds it."""
-    if p[P_LOAD_MODEL] == LOAD_LINKAGE:
-        return N_STATE
-    if p[P_LOAD_MODEL] == LOAD_LUMPED:
-        if p[P_LOAD_MOTOR] != 0.0:
-            return X_TLM + 1
-        if p[P_SHAFT] != 0.0:
-            return X_DISK_RATE + 1
-    if p[P_ANCHORAGE] != 0.0:
-        return X_VH + 1
-    if p[P_COMPLIANCE] != 0.0:
-        return X_VN + 1
-    return X_DRIVE_END
-
-
-@njit(cache=True, error_model="numpy")
-def rudder_angle(x, p):
-    """Rudder angle (rad): the linkage's rocker arm, or rod position / arm of the lumped stage."""
-    return rudder_motion(x, p)[0]
+drivetrain_force = output("drivetrain_force_N")  # (x, p): what a load cell on the rod reads
+rudder_angle = output("rudder_angle_rad")  # (x, p): the rocker arm's angle (rad)
 
 
 @njit(cache=True, error_model="numpy")
@@ -426,55 +254,4 @@ def rod_extension(x):
     return x[X_XL] - x[X_XH], x[X_VL] - x[X_VH]
 
 
-# --- the element outputs of the trace (PLANT.outputs), written by plant_outputs ------------
-O_TORQUE = PLANT.outputs.index("torque_Nm")
-O_FRICTION = PLANT.outputs.index("friction_torque_Nm")
-O_DRIVETRAIN = PLANT.outputs.index("drivetrain_force_N")
-O_RUDDER = PLANT.outputs.index("rudder_angle_rad")
-O_END_STOP = PLANT.outputs.index("end_stop_force_N")
-O_RUDDER_STOP = PLANT.outputs.index("rudder_stop_torque_Nm")
-O_COMPLIANCE = PLANT.outputs.index("compliance_force_N")
-O_ANCHORAGE = PLANT.outputs.index("anchorage_force_N")
-O_SHAFT = PLANT.outputs.index("shaft_torque_Nm")
-O_LINKAGE = PLANT.outputs.index(L.LINKAGE.outputs[0].name)
 N_OUTPUTS = len(PLANT.outputs)
-N_LINKAGE_OUTPUTS = len(L.LINKAGE.outputs)
-
-
-@njit(cache=True, error_model="numpy")
-def linkage_outputs(x, p, out):
-    """Rod force and hinge normal forces and penetrations (linkage.LINKAGE.outputs) of state x;
-    NaN with the lumped rudder stage."""
-    if p[P_LOAD_MODEL] == LOAD_LUMPED:
-        out[:] = np.nan
-        return
-    hinges = np.empty((L.N_HINGES, 2))
-    rates = np.empty(L.N_LINK)
-    y, q = x[X_LINK:X_LINK_END], p[P_LINK:P_LINK_END]
-    out[0] = L.linkage_rhs(y, x[X_XL], x[X_VL], 0.0, q, rates, hinges)
-    for h in range(L.N_HINGES):  # hinge order in linkage.py: H1, H2, H3, H4 = 0..3
-        out[1 + h] = hinges[h, 1]
-        out[1 + L.N_HINGES + h] = hinges[h, 0]
-
-
-@njit(cache=True, error_model="numpy")
-def plant_outputs(x, p, out):
-    """Write every element output of state x (layout PLANT.outputs) into ``out``; an absent
-    element's outputs are NaN."""
-    out[O_TORQUE] = motor_torque(x, p)
-    out[O_FRICTION] = friction(x[X_WM], x[X_Z], p)[0]
-    out[O_DRIVETRAIN] = drivetrain_force(x, p)
-    out[O_RUDDER] = rudder_angle(x, p)
-    if p[P_STOPS] != 0.0:
-        theta, omega = rudder_motion(x, p)
-        out[O_END_STOP] = rod_stop_force(x, p)
-        out[O_RUDDER_STOP] = rudder_stop_torque(theta, omega, p)
-    else:
-        out[O_END_STOP] = out[O_RUDDER_STOP] = np.nan
-    out[O_COMPLIANCE] = compliance_force(x, p)
-    if p[P_ANCHORAGE] != 0.0:
-        out[O_ANCHORAGE] = anchorage_force(x[X_XH], x[X_VH], p[P_KA], p[P_CA])
-    else:
-        out[O_ANCHORAGE] = np.nan
-    out[O_SHAFT] = shaft_torque_of(x, p)
-    linkage_outputs(x, p, out[O_LINKAGE : O_LINKAGE + N_LINKAGE_OUTPUTS])

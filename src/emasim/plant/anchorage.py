@@ -18,12 +18,14 @@ with the series compliance between them, at the eigenfrequencies of the two-mass
 from pydantic import Field
 
 from ..config import Strict
-from ..jit import njit
-from .element import Element, Quantity, State, rod_position_bound, rod_velocity_bound
+from .element import Quantity, State, rod_position_bound, rod_velocity_bound
+from .spring_damper import spring_damper
 
-ANCHORAGE = Element(
+ANCHORAGE = spring_damper(
     "anchorage",
     "the actuator body on the structure: a spring-damper along the actuator's axis",
+    node="housing",
+    anchor="ground",
     states=(
         State(
             "housing_position_m",
@@ -46,15 +48,10 @@ ANCHORAGE = Element(
         Quantity("anchorage_damping_Ns_per_m", "N s/m", "c_a"),
         Quantity("housing_mass_kg", "kg", "m_h"),
     ),
-    outputs=(Quantity("anchorage_force_N", "N", "force of the structure on the actuator body"),),
-    presence="anchorage_present",
+    output=Quantity("anchorage_force_N", "N", "force of the structure on the actuator body"),
+    mode="the anchorage",
+    order=("anchorage", "transmission", "end_stops"),  # m_h dv_h/dt = F_a - F_gap - F_stop
 )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def anchorage_force(x_h, v_h, stiffness, damping):
-    """-k_a x_h - c_a v_h (N): the structure's force on the body."""
-    return -stiffness * x_h - damping * v_h
 
 
 class AnchorageParams(Strict):

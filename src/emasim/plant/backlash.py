@@ -20,7 +20,7 @@ Play operator (position form), for a position read through a gap of half-width b
 """
 
 from ..jit import njit
-from .element import Element, Quantity
+from .element import RK4_OSCILLATOR_LIMIT, Coupling, Element, Quantity, two_body_rate
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -59,5 +59,24 @@ BACKLASH = Element(
         Quantity("backlash_stiffness_N_per_m", "N/m", "K"),
         Quantity("backlash_damping_Ns_per_m", "N s/m", "c"),
     ),
-    outputs=(Quantity("drivetrain_force_N", "N", "contact force of the nut on the rod"),),
+    # the gap between the nut and what lies beyond it: a series compliance's node, or the rod
+    couplings=(
+        Coupling(
+            dead_zone_force,
+            "nut",
+            "far|rod",
+            ("backlash_half_gap_m", "backlash_stiffness_N_per_m", "backlash_damping_Ns_per_m"),
+        ),
+    ),
+    modes=lambda value, mass: [
+        (
+            "the backlash contact stiffness",
+            two_body_rate(
+                value("backlash_stiffness_N_per_m"),
+                value("rotor_inertia_kgm2") / value("ratio_m_per_rad") ** 2,
+                mass("far|rod"),
+            ),
+            RK4_OSCILLATOR_LIMIT,
+        )
+    ],
 )

@@ -21,12 +21,14 @@ spring deflects F/k.
 from pydantic import Field
 
 from ..config import Strict
-from ..jit import njit
-from .element import Element, Quantity, State, rod_position_bound, rod_velocity_bound
+from .element import Quantity, State, rod_position_bound, rod_velocity_bound
+from .spring_damper import spring_damper
 
-COMPLIANCE = Element(
+COMPLIANCE = spring_damper(
     "compliance",
     "series spring-damper between the nut and the rod, behind the backlash gap",
+    node="far",
+    anchor="rod",
     states=(
         State(
             "compliance_node_position_m",
@@ -49,15 +51,10 @@ COMPLIANCE = Element(
         Quantity("compliance_damping_Ns_per_m", "N s/m", "c"),
         Quantity("compliance_node_mass_kg", "kg", "m_n"),
     ),
-    outputs=(Quantity("compliance_force_N", "N", "spring-damper force on the rod"),),
-    presence="compliance_present",
+    output=Quantity("compliance_force_N", "N", "spring-damper force on the rod"),
+    output_on_anchor=True,
+    mode="the screw's compliance",
 )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def spring_force(x_node, v_node, x_rod, v_rod, stiffness, damping):
-    """F_spring = k (x_n - x_L) + c (v_n - v_L) (N), positive pushing the rod forward."""
-    return stiffness * (x_node - x_rod) + damping * (v_node - v_rod)
 
 
 class ComplianceParams(Strict):

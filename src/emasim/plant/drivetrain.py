@@ -14,7 +14,7 @@ when contact opens or closes.
 import math
 
 from ..jit import njit
-from .element import Element, Quantity
+from .element import Derived, Element, Law, Quantity
 
 
 def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
@@ -31,11 +31,49 @@ def reflected_torque(force, motor_speed, ratio_k, efficiency):
     return torque * efficiency
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def nut_motion(theta, w, x_body, v_body, ratio_k):
+    """The nut's position (m) and velocity (m/s): x_body + K theta, on the screw's shaft at
+    theta (rad) turning at w (rad/s) in a body at x_body moving at v_body."""
+    return ratio_k * theta + x_body, ratio_k * w + v_body
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def nut_reaction(force, w, ratio_k, efficiency):
+    """What a force on the nut (N) does: the screw's thrust bearing passes it to the body, and
+    the shaft turning at w feels -reflected_torque(-force) (N m), the torque the nut's load
+    takes through the efficiency."""
+    return force, -reflected_torque(-force, w, ratio_k, efficiency)
+
+
 TRANSMISSION = Element(
     "transmission",
     "gearbox and roller screw: ratio and efficiency",
     params=(
         Quantity("ratio_m_per_rad", "m/rad", "K = L / (2 pi N)"),
         Quantity("efficiency", "1", "eta = eta_gear eta_screw"),
+    ),
+    # the nut follows the screw's shaft (the motor's, or a gear mesh's far side) in the body
+    derived=(
+        Derived(
+            "nut",
+            motion=Law(
+                nut_motion,
+                (
+                    "screw|motor.x",
+                    "screw|motor.v",
+                    "housing|ground.x",
+                    "housing|ground.v",
+                    "p.ratio_m_per_rad",
+                ),
+                ("x", "v"),
+            ),
+            fold=Law(
+                nut_reaction,
+                ("nut.f", "screw|motor.v", "p.ratio_m_per_rad", "p.efficiency"),
+                ("body_force", "shaft_torque"),
+            ),
+            onto=("housing|ground", "screw|motor"),
+        ),
     ),
 )

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..config import MM, RPM
+from ..jit import njit
 
 RATED_RUNAWAY = 20.0  # a rated quantity (current, speed) this many times over is a runaway
 FAR_RUNAWAY = 1e3  # a position this many strokes (or a state this many natural scales) away
@@ -48,6 +49,28 @@ def rod_velocity_bound(plant) -> float:
     return RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM * plant.ratio_m_per_rad
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def viscous_force(damping, rate):
+    """c v: a viscous force (N) or torque (N m) on a body moving at ``rate``."""
+    return damping * rate
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def total(a, b):
+    """a + b: two forces on one body."""
+    return a + b
+
+
+def two_body_rate(stiffness: float, m1: float, m2: float = math.inf) -> float:
+    """omega = sqrt(k (1/m1 + 1/m2)) (rad/s): two masses on a spring, each free (m2 = inf: the
+    spring's other end fixed)."""
+    return math.sqrt(stiffness * (1.0 / m1 + 1.0 / m2))
+
+
+RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # RK4 is stable for omega h below this (imaginary axis)
+RK4_DECAY_LIMIT = 2.78  # and for lambda h below this (negative real axis)
+
+
 @dataclass(frozen=True)
 class Quantity:
     """A named value with its unit: a parameter or an output column."""
@@ -67,8 +90,85 @@ class State(Quantity):
 
 
 @dataclass(frozen=True)
+class Law:
+    """A compiled function (``inline="always"``) of bound arguments, its results named.
+
+    An argument is bound by a token: ``x.<state>``, ``p.<param>``, ``in.<input>`` (u_d, u_q,
+    t_load, f_load, t_rudder), ``<node>.x``/``.v`` (a node's motion), ``<node>.fold`` (the
+    force an absent body passes to the node it merges into, 0 while present), ``x[<element>]``,
+    ``dx[<element>]`` or ``p[<element>]`` (an element's slice), ``hinges``, a number, or the
+    name of a result of an earlier law of the same element. A port written ``a|b`` is node a
+    where some element provides it, else b.
+    """
+
+    function: Callable
+    args: tuple[str, ...]
+    results: tuple[str, ...]
+    always: bool = False  # evaluated whether or not the element is present
+
+
+@dataclass(frozen=True)
+class Body:
+    """A moving node: ``position`` and ``velocity`` states (m, m/s or rad, rad/s) and the
+    parameter ``mass`` (kg or kg m^2); d velocity/dt = (sum of the forces on the node) / mass
+    (+ the accelerations derived nodes push). While its element is absent the node is
+    ``alias`` (its forces go there, its states stay). ``order`` fixes the order of the sum
+    (floating-point sums are not associative, and the clearance-joint bench amplifies a
+    rounding difference into a different trace): the terms of the named elements, or the
+    named terms (``fold_far``, ``f_load``), first in that order, then the rest in element
+    order."""
+
+    node: str
+    position: str
+    velocity: str
+    mass: str
+    alias: str | None = None
+    order: tuple[str, ...] = ()  # its equation's terms, in this order: element names or terms
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """A force between two ports: F = law(x_a - x_b, v_a - v_b, *params) pushes port ``b``
+    forward and port ``a`` back (a port ``ground`` feels nothing). ``result`` names F for the
+    element's forces and values."""
+
+    law: Callable
+    a: str
+    b: str
+    params: tuple[str, ...]
+    result: str = "force"
+
+
+@dataclass(frozen=True)
+class Derived:
+    """A node whose motion follows other nodes: ``motion`` returns (x, v); the force on the
+    node, bound as ``<node>.f``, is passed on by ``fold``, whose results push the nodes of
+    ``onto`` in order (``<node>.a``: an acceleration of the node, added after the division by
+    its mass). ``exchange`` names the fold result the right-hand side returns (the
+    force a co-simulation exchanges), if any."""
+
+    node: str
+    motion: Law
+    fold: Law
+    onto: tuple[str, ...]
+    exchange: str | None = None
+
+
+Mode = tuple[str, float, float]  # (what, rate in rad/s or 1/s, the RK4 stability limit of h * rate)
+
+
+@dataclass(frozen=True)
 class Element:
-    """One physical element of the plant (module docstring)."""
+    """One physical element of the plant (module docstring).
+
+    Its behaviour: ``bodies`` (nodes it owns), ``derived`` (nodes that follow others),
+    ``couplings`` and ``laws`` (computed in that order), ``forces`` ((node, signed result):
+    ``"-torque"`` pushes the node back), ``rates`` ((state, result): d state/dt), ``values``
+    ((output, result)), and ``modes(value)``, its natural modes for the divergence diagnosis
+    and the stable step (``value(name)`` reads a packed parameter, ``mass(port)`` the mass of
+    the body at a port, that of its alias while it is absent). ``mechanism`` marks the
+    rudder side, which a co-simulation integrates apart (emasim.sim.mechanism).
+    """
 
     name: str
     description: str
@@ -76,6 +176,15 @@ class Element:
     params: tuple[Quantity, ...] = ()
     outputs: tuple[Quantity, ...] = ()
     presence: str | None = None  # a parameter that is 0 when the element is absent
+    bodies: tuple[Body, ...] = ()
+    derived: tuple[Derived, ...] = ()
+    couplings: tuple[Coupling, ...] = ()
+    laws: tuple[Law, ...] = ()
+    forces: tuple[tuple[str, str], ...] = ()
+    rates: tuple[tuple[str, str], ...] = ()
+    values: tuple[tuple[str, str], ...] = ()
+    modes: Callable = field(default=lambda value, mass: [], compare=False)
+    mechanism: bool = False
 
 
 class Layout:
@@ -135,6 +244,36 @@ class PlantLayout:
             or element.name in keep
             or params[self.params.index(element.presence)] != 0
         )
+
+    def value_of(self, params: np.ndarray) -> Callable[[str], float]:
+        """A reader of the packed ``params`` by parameter name."""
+        return lambda name: float(params[self.params.index(name)])
+
+    def mass_at(self, params: np.ndarray, port: str) -> float:
+        """The mass (kg or kg m^2) of the body at ``port`` (``a|b``: the first node some
+        element provides): its own while its element is present, else its alias's; infinite
+        for the ground."""
+        bodies = {b.node: (e, b) for e in self.elements for b in e.bodies}
+        node = next((n for n in port.split("|") if n in bodies or n == "ground"), None)
+        if node is None:
+            raise ValueError(f"no body at the port '{port}'")
+        if node == "ground":
+            return math.inf
+        element, body = bodies[node]
+        if element.presence is None or params[self.params.index(element.presence)] != 0:
+            return float(params[self.params.index(body.mass)])
+        return self.mass_at(params, body.alias)
+
+    def modes(self, params: np.ndarray) -> list[Mode]:
+        """The natural modes (what, rate, RK4 limit of h * rate) of every present element."""
+        present = self.present_elements(params)
+        value = self.value_of(params)
+        return [
+            mode
+            for element in self.elements
+            if element.name in present
+            for mode in element.modes(value, lambda port: self.mass_at(params, port))
+        ]
 
     def atol(self) -> np.ndarray:
         """Every state's absolute tolerance, for the reference solver."""

@@ -17,7 +17,19 @@ step h the bristle equation is linear in z and has the exact solution used by
 import math
 
 from ..jit import njit
-from .element import FAR_RUNAWAY, Element, Quantity, State, damping_for_ratio
+from .element import (
+    FAR_RUNAWAY,
+    RK4_OSCILLATOR_LIMIT,
+    Element,
+    Law,
+    Quantity,
+    State,
+    damping_for_ratio,
+)
+
+FRICTION_NONE = 0
+FRICTION_COULOMB = 1
+FRICTION_LUGRE = 2
 
 EXP_ZERO = 746.0  # exp(-x) rounds to exactly 0.0 for x > 745.14
 
@@ -90,6 +102,17 @@ def coulomb_viscous_force(v, fc, v_smooth, sigma2):
     return fc * math.tanh(v / v_smooth) + sigma2 * v
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def friction_torque(w, z, model, fc, fs, ws, sigma0, sigma1, sigma2, w_smooth):
+    """Friction torque on the shaft (N m) at speed w and bristle state z, and the bristle rate
+    dz/dt (rad/s, zero but for the LuGre model), for the model FRICTION_*."""
+    if model == FRICTION_LUGRE:
+        return lugre_force(z, w, fc, fs, ws, sigma0, sigma1, sigma2)
+    if model == FRICTION_COULOMB:
+        return coulomb_viscous_force(w, fc, w_smooth, sigma2), 0.0
+    return 0.0, 0.0
+
+
 def bristle_damping_for_ratio(zeta: float, sigma0: float, inertia: float, sigma2: float) -> float:
     """sigma1 giving damping ratio zeta to the presliding (bristle) mode on a given inertia.
 
@@ -133,4 +156,36 @@ FRICTION = Element(
         Quantity("smoothing_speed_rad_s", "rad/s", "Coulomb map: tanh(w/ws) for sign(w)"),
     ),
     outputs=(Quantity("friction_torque_Nm", "N m", "friction torque on the motor shaft"),),
+    laws=(
+        Law(
+            friction_torque,
+            (
+                "motor.v",
+                "x.bristle_state_rad",
+                "p.friction_model",
+                "p.coulomb_Nm",
+                "p.static_Nm",
+                "p.stribeck_speed_rad_s",
+                "p.bristle_stiffness_Nm_per_rad",
+                "p.bristle_damping_Nms_per_rad",
+                "p.friction_viscous_Nms_per_rad",
+                "p.smoothing_speed_rad_s",
+            ),
+            ("torque", "bristle_rate"),
+        ),
+    ),
+    forces=(("motor", "-torque"),),
+    rates=(("bristle_state_rad", "bristle_rate"),),
+    values=(("friction_torque_Nm", "torque"),),
+    modes=lambda value, mass: (
+        [
+            (
+                "the LuGre bristle stiffness",
+                math.sqrt(value("bristle_stiffness_Nm_per_rad") / value("rotor_inertia_kgm2")),
+                RK4_OSCILLATOR_LIMIT,
+            )
+        ]
+        if value("friction_model") == FRICTION_LUGRE
+        else []
+    ),
 )

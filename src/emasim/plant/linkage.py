@@ -40,7 +40,7 @@ from pydantic import Field
 from ..config import MM, Strict, numbers
 from ..jit import njit
 from . import contact
-from .element import Element, Quantity, State
+from .element import Derived, Element, Law, Quantity, State
 
 # --- state of the linkage (positions, then rates) ----------------------------------------
 PHI, XB, YB, TB, XC, YC, TC, TD = range(8)
@@ -135,15 +135,6 @@ LINKAGE_COLUMNS = (
     *(Quantity(f"hinge{h}_force_N", "N", f"normal force at hinge {h}") for h in (1, 2, 3, 4)),
     *(Quantity(f"hinge{h}_penetration_m", "m", f"penetration at hinge {h}") for h in (1, 2, 3, 4)),
 )
-LINKAGE = Element(
-    "linkage",
-    "planar bodies tied by four clearance-joint hinges (ADAMS model)",
-    states=LINK_STATES,
-    params=tuple(Quantity(f"linkage_{name}", unit) for name, unit in _PARAMS),
-    outputs=LINKAGE_COLUMNS,
-    presence="load_model",  # LOAD_LUMPED (0) or LOAD_LINKAGE (1), a parameter of the rod
-)
-
 # generalised forces gathered over the hinges: linkage_rhs sums them in the rows of dy that
 # then receive the accelerations they drive (the rate rows N_POS + PHI .. N_POS + TD), so that
 # the right-hand side allocates nothing; the axial force on the rod is returned
@@ -462,3 +453,108 @@ class LinkageParams(Strict):
         q[[CLEAR + H1, CLEAR + H2, CLEAR + H3, CLEAR + H4]] = clearance
         q[CONTACT:] = self.contact.pack()
         return q
+
+
+# --- the rudder side's coupling to the rod: the lumped stage, the linkage, or held ---------
+LOAD_LUMPED = 0  # the rod and a lumped rudder stage: rudder angle = rod position / arm
+LOAD_LINKAGE = 1  # the rod alone; the linkage carries the rudder
+LOAD_HELD = 2  # the rod alone; the rudder side is solved elsewhere (a co-simulation's mechanism)
+# and its states are held in x between exchanges
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def rocker_motion(load_model, s, s_dot, arm, angle, rate):
+    """The rocker arm's angle (rad) and rate (rad/s): the linkage's (integrated, or held by a
+    co-simulation), or the rod's (s, s_dot) through the lumped stage's arm."""
+    if load_model != LOAD_LUMPED:
+        return angle, rate
+    return s / arm, s_dot / arm
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def rocker_reaction(torque, load_model, s, s_dot, arm, y, q, dy, hinges):
+    """What the torque on the rocker arm (N m, driving positive deflection) does to the rod:
+    (the linkage's axial push in N, the lumped stage's push in N, an acceleration in m/s^2).
+    Lumped stage: torque / arm. Linkage: its right-hand side (written into dy, the hinges into
+    ``hinges``), its axial push, and the centripetal r phi'^2 of the swinging rod
+    (r = L0 + s). Held: nothing (a co-simulation solves the rudder side). The two pushes are
+    kept apart because the rod's equation sums them at different places (emasim.plant.rod)."""
+    if load_model == LOAD_LUMPED:
+        return 0.0, torque / arm, 0.0
+    if load_model == LOAD_HELD:
+        return 0.0, 0.0, 0.0
+    axial = linkage_rhs(y, s, s_dot, torque, q, dy, hinges)
+    swing = y[N_POS + PHI]
+    return axial, 0.0, (q[L0] + s) * swing * swing
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def linkage_columns(y, s, s_dot, q):
+    """The linkage's outputs (LINKAGE_COLUMNS) of state y: its axial push on the rod (N), the
+    hinges' normal forces (N) and penetrations (m), hinges 1 to 4."""
+    hinges = np.empty((N_HINGES, 2))
+    axial = linkage_rhs(y, s, s_dot, 0.0, q, np.empty(N_LINK), hinges)
+    return (
+        axial,
+        hinges[H1, 1],
+        hinges[H2, 1],
+        hinges[H3, 1],
+        hinges[H4, 1],
+        hinges[H1, 0],
+        hinges[H2, 0],
+        hinges[H3, 0],
+        hinges[H4, 0],
+    )
+
+
+LINKAGE = Element(
+    "linkage",
+    "planar bodies tied by four clearance-joint hinges (ADAMS model)",
+    states=LINK_STATES,
+    params=tuple(Quantity(f"linkage_{name}", unit) for name, unit in _PARAMS),
+    outputs=LINKAGE_COLUMNS,
+    presence="load_model",  # LOAD_LINKAGE, or LOAD_HELD (the states held), a parameter of the rod
+    derived=(
+        Derived(
+            "rocker",
+            motion=Law(
+                rocker_motion,
+                (
+                    "p.load_model",
+                    "rod.x",
+                    "rod.v",
+                    "p.rudder_arm_m",
+                    f"x.{LINK_STATE_NAMES[TD]}",
+                    f"x.{LINK_STATE_NAMES[N_POS + TD]}",
+                ),
+                ("x", "v"),
+            ),
+            fold=Law(
+                rocker_reaction,
+                (
+                    "rocker.f",
+                    "p.load_model",
+                    "rod.x",
+                    "rod.v",
+                    "p.rudder_arm_m",
+                    "x[linkage]",
+                    "p[linkage]",
+                    "dx[linkage]",
+                    "hinges",
+                ),
+                ("axial", "lever", "swing"),
+            ),
+            onto=("rod", "rod", "rod.a"),
+            exchange="axial",
+        ),
+    ),
+    laws=(
+        Law(
+            linkage_columns,
+            ("x[linkage]", "rod.x", "rod.v", "p[linkage]"),
+            tuple(q.name for q in LINKAGE_COLUMNS),
+        ),
+    ),
+    values=tuple((q.name, q.name) for q in LINKAGE_COLUMNS),
+    mechanism=True,
+)

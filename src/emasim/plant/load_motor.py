@@ -23,7 +23,22 @@ from pydantic import Field, model_validator
 from ..config import Strict
 from ..jit import njit
 from ..numerics import clamp
-from .element import RATED_RUNAWAY, Element, Quantity, State
+from .element import RATED_RUNAWAY, RK4_DECAY_LIMIT, Element, Law, Quantity, State
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def rudder_load(present, torque, profile):
+    """The load on the rudder side (N m, opposing positive deflection): the load motor's
+    torque, or without one the profile T(t) itself."""
+    return torque if present != 0.0 else profile
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def load_motor_rate(torque, profile, angle, tau, spring, preload, max_torque):
+    """dT_lm/dt (N m/s) for the profile torque T(t) and the angle theta (module docstring)."""
+    command = clamp(profile + preload + spring * angle, -max_torque, max_torque)
+    return (command - torque) / tau
+
 
 LOAD_MOTOR = Element(
     "load_motor",
@@ -47,14 +62,34 @@ LOAD_MOTOR = Element(
         Quantity("load_motor_max_torque_Nm", "N m", "T_max"),
     ),
     presence="load_motor_present",
+    laws=(
+        Law(
+            load_motor_rate,
+            (
+                "x.load_motor_torque_Nm",
+                "in.t_rudder",
+                "disk|rocker.x",
+                "p.load_motor_time_constant_s",
+                "p.load_motor_spring_Nm_per_rad",
+                "p.load_motor_preload_Nm",
+                "p.load_motor_max_torque_Nm",
+            ),
+            ("rate",),
+        ),
+        Law(
+            rudder_load,
+            ("p.load_motor_present", "x.load_motor_torque_Nm", "in.t_rudder"),
+            ("load",),
+            always=True,
+        ),
+    ),
+    rates=(("load_motor_torque_Nm", "rate"),),
+    forces=(("disk|rocker", "-load"),),
+    modes=lambda value, mass: [
+        ("the load motor's torque loop", 1.0 / value("load_motor_time_constant_s"), RK4_DECAY_LIMIT)
+    ],
+    mechanism=True,
 )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def load_motor_rate(torque, profile, angle, tau, spring, preload, max_torque):
-    """dT_lm/dt (N m/s) for the profile torque T(t) and the angle theta (module docstring)."""
-    command = clamp(profile + preload + spring * angle, -max_torque, max_torque)
-    return (command - torque) / tau
 
 
 class LoadMotorParams(Strict):

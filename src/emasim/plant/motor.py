@@ -21,7 +21,17 @@ import math
 from ..config import MM, RPM
 from ..jit import njit
 from ..numerics import limit_magnitude
-from .element import FAR_RUNAWAY, RATED_RUNAWAY, Element, Quantity, State
+from .element import (
+    FAR_RUNAWAY,
+    RATED_RUNAWAY,
+    RK4_DECAY_LIMIT,
+    Body,
+    Element,
+    Law,
+    Quantity,
+    State,
+    viscous_force,
+)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -69,6 +79,14 @@ def inverter_current_rates(i_d, i_q, u_d, u_q, w_e, rs, ld, lq, psi_f, i_max, u_
     return current_rates(i_d, i_q, v_d, v_q, w_e, rs, ld, lq, psi_f)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def stator_rates(i_d, i_q, u_d, u_q, w, pole_pairs, rs, ld, lq, psi_f, i_max, u_dc):
+    """inverter_current_rates at the electrical speed w_e = np w of the shaft speed w."""
+    return inverter_current_rates(
+        i_d, i_q, u_d, u_q, pole_pairs * w, rs, ld, lq, psi_f, i_max, u_dc
+    )
+
+
 def torque_constant(pole_pairs: float, psi_f: float) -> float:
     """kt = 1.5 np psi_f (N*m/A): torque per q-axis ampere with id = 0."""
     return 1.5 * pole_pairs * psi_f
@@ -77,6 +95,15 @@ def torque_constant(pole_pairs: float, psi_f: float) -> float:
 def _current_bound(plant) -> float:
     return RATED_RUNAWAY * plant.motor.max_current_A
 
+
+_STATOR = (  # the stator's parameters, in the order stator_rates takes them
+    "p.stator_resistance_ohm",
+    "p.inductance_d_H",
+    "p.inductance_q_H",
+    "p.flux_linkage_Wb",
+    "p.max_current_A",
+    "p.dc_bus_V",
+)
 
 MOTOR = Element(
     "motor",
@@ -118,4 +145,37 @@ MOTOR = Element(
         Quantity("max_speed_rad_s", "rad/s", "the drive's speed limit, held on every command"),
     ),
     outputs=(Quantity("torque_Nm", "N m", "electromagnetic torque Te"),),
+    # the rotor (and what turns rigidly with it): J dw/dt = Te - B w - T_friction - TL - T_nut
+    bodies=(
+        Body(
+            "motor",
+            "motor_angle_rad",
+            "motor_speed_rad_s",
+            "rotor_inertia_kgm2",
+            order=("motor", "friction", "t_load", "transmission"),
+        ),
+    ),
+    laws=(
+        Law(
+            stator_rates,
+            ("x.id_A", "x.iq_A", "in.u_d", "in.u_q", "motor.v", "p.pole_pairs", *_STATOR),
+            ("did", "diq"),
+        ),
+        Law(
+            electromagnetic_torque,
+            ("x.id_A", "x.iq_A", "p.pole_pairs", *_STATOR[1:4]),
+            ("torque",),
+        ),
+        Law(viscous_force, ("p.motor_viscous_Nms_per_rad", "motor.v"), ("viscous",)),
+    ),
+    forces=(("motor", "+torque"), ("motor", "-viscous"), ("motor", "-in.t_load")),
+    rates=(("id_A", "did"), ("iq_A", "diq")),
+    values=(("torque_Nm", "torque"),),
+    modes=lambda value, mass: [
+        (
+            "the stator time constant L/R",
+            value("stator_resistance_ohm") / min(value("inductance_d_H"), value("inductance_q_H")),
+            RK4_DECAY_LIMIT,
+        )
+    ],
 )

@@ -16,12 +16,14 @@ rod free on a lumped stage, at the two-mass frequency sqrt(k_t (1/J_d + 1/(M_L r
 from pydantic import Field
 
 from ..config import Strict
-from ..jit import njit
-from .element import FAR_RUNAWAY, Element, Quantity, State
+from .element import FAR_RUNAWAY, Quantity, State
+from .spring_damper import spring_damper
 
-RUDDER_SHAFT = Element(
+RUDDER_SHAFT = spring_damper(
     "rudder_shaft",
     "torsion of the rudder shaft between the rocker arm and the inertia disk",
+    node="disk",
+    anchor="rocker",
     states=(
         State("disk_angle_rad", "rad", "angle of the inertia disk", atol=1e-12),
         State(
@@ -38,15 +40,11 @@ RUDDER_SHAFT = Element(
         Quantity("shaft_damping_Nms_per_rad", "N m s/rad", "c_t"),
         Quantity("disk_inertia_kgm2", "kg m^2", "J_d: the disk and the load motor's rotor"),
     ),
-    outputs=(Quantity("shaft_torque_Nm", "N m", "torque in the shaft (the torque sensor)"),),
-    presence="shaft_present",
+    output=Quantity("shaft_torque_Nm", "N m", "torque in the shaft (the torque sensor)"),
+    mode="the rudder shaft's torsion",
+    rigid_anchor=True,  # the disk rings against the rudder side, far heavier at the arm
+    mechanism=True,
 )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def shaft_torque(theta_r, omega_r, theta_d, omega_d, stiffness, damping):
-    """T_shaft = k_t (theta_r - theta_d) + c_t (omega_r - omega_d) (N m)."""
-    return stiffness * (theta_r - theta_d) + damping * (omega_r - omega_d)
 
 
 class ShaftParams(Strict):

@@ -26,7 +26,7 @@ from pydantic import Field
 from ..config import Strict
 from ..jit import njit
 from .backlash import dead_zone_force
-from .element import Element, Quantity
+from .element import RK4_OSCILLATOR_LIMIT, Coupling, Element, Quantity, two_body_rate
 
 END_STOPS = Element(
     "end_stops",
@@ -45,6 +45,36 @@ END_STOPS = Element(
         Quantity("rudder_stop_torque_Nm", "N m", "torque of the rudder's stops on the rudder"),
     ),
     presence="end_stops_present",
+    # stop_force(s) = dead_zone_force(-s): the rod's stops on its extension from the body, the
+    # rudder's on its angle from the structure
+    couplings=(
+        Coupling(
+            dead_zone_force,
+            "housing|ground",
+            "rod",
+            ("stroke_half_m", "stop_stiffness_N_per_m", "stop_damping_Ns_per_m"),
+            result="rod_force",
+        ),
+        Coupling(
+            dead_zone_force,
+            "ground",
+            "rocker",
+            (
+                "rudder_limit_rad",
+                "rudder_stop_stiffness_Nm_per_rad",
+                "rudder_stop_damping_Nms_per_rad",
+            ),
+            result="rudder_torque",
+        ),
+    ),
+    values=(("end_stop_force_N", "rod_force"), ("rudder_stop_torque_Nm", "rudder_torque")),
+    modes=lambda value, mass: [
+        (
+            "the rod's end stops",
+            two_body_rate(value("stop_stiffness_N_per_m"), value("load_mass_kg")),
+            RK4_OSCILLATOR_LIMIT,
+        )
+    ],
 )
 
 

@@ -3,15 +3,13 @@
 The checks, in order:
 
 1. **A mode too fast for the sub-step.** Classic RK4 is stable on an undamped oscillator only
-   while omega h < 2 sqrt(2) (about 2.83) and on a decaying mode while lambda h < 2.78. The
-   plant's fastest modes are the backlash contact, omega = sqrt(K_b / m_r) with m_r the
-   reduced mass of the motor (J / K^2 at the nut) and what lies beyond the gap (the
-   compliance's node m_n where the plant has one, else the load: the masses the contact
-   couples in the right-hand side); the bristles of the LuGre friction,
-   omega = sqrt(sigma0 / J); the stator, lambda = R / min(Ld, Lq); and, when the plant has
-   them, the screw's compliance between its node and the load, sqrt(k_s (1/m_n + 1/m_L)),
-   the rod's end stops on the rod, sqrt(k / m_rod), the anchorage, sqrt(k_a / m_h), the
-   rudder shaft, sqrt(k_t / J_d), and the load motor's torque loop, 1/tau.
+   while omega h < 2 sqrt(2) (about 2.83) and on a decaying mode while lambda h < 2.78. Each
+   present element declares its natural modes (emasim.plant.element.Element.modes): the
+   backlash contact between the motor seen at the nut (J / K^2) and the body beyond the gap
+   (the compliance's node where the plant has one, else the load), the LuGre bristles,
+   sqrt(sigma0 / J), the stator, R / min(Ld, Lq), each spring-damper's two-body rate (the
+   screw's compliance, the anchorage, the rudder shaft), the rod's end stops, sqrt(k / m_rod),
+   and the load motor's torque loop, 1/tau.
 2. **A load beyond the drive.** The peak external load seen at the rod (rod force, motor
    torque / K, rudder torque through the linkage's lever at mid stroke or the lumped arm)
    against the stall force of the drive,
@@ -22,8 +20,6 @@ The checks, in order:
 Otherwise the likely cause is the controller: gains that make the sampled loop unstable.
 """
 
-import math
-
 import numpy as np
 
 from ..plant import actuator as A
@@ -31,43 +27,14 @@ from ..plant import linkage as L
 from ..plant.motor import torque_constant
 from ..signals import signal_value
 
-RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # omega h on the imaginary axis
-RK4_DECAY_LIMIT = 2.78  # lambda h on the negative real axis
 SAFE_FRACTION = 0.5  # suggest a step with this margin below the limit
 LOAD_SAMPLES = 2001
 
 
-def _two_body_rate(stiffness: float, m1: float, m2: float) -> float:
-    """omega = sqrt(k (1/m1 + 1/m2)) (rad/s): two masses on a spring, each free."""
-    return math.sqrt(stiffness * (1.0 / m1 + 1.0 / m2))
-
-
 def fastest_modes(plant: np.ndarray) -> list[tuple[str, float, float]]:
-    """(element, rate in rad/s or 1/s, the largest stable h) of the plant's stiff modes."""
-    motor_mass = plant[A.P_J] / plant[A.P_K] ** 2
-    compliant = plant[A.P_COMPLIANCE] != 0.0
-    beyond_gap = plant[A.P_MN] if compliant else plant[A.P_ML]
-    omega_backlash = _two_body_rate(plant[A.P_KB], motor_mass, beyond_gap)
-    modes = [("the backlash contact stiffness", omega_backlash, RK4_OSCILLATOR_LIMIT)]
-    if compliant:
-        omega_screw = _two_body_rate(plant[A.P_KS], plant[A.P_MN], plant[A.P_ML])
-        modes.append(("the screw's compliance", omega_screw, RK4_OSCILLATOR_LIMIT))
-    if plant[A.P_FRICTION] == A.FRICTION_LUGRE:
-        omega_bristle = math.sqrt(plant[A.P_SIGMA0] / plant[A.P_J])
-        modes.append(("the LuGre bristle stiffness", omega_bristle, RK4_OSCILLATOR_LIMIT))
-    stator = plant[A.P_RS] / min(plant[A.P_LD], plant[A.P_LQ])
-    modes.append(("the stator time constant L/R", stator, RK4_DECAY_LIMIT))
-    options = (
-        (A.P_STOPS, "the rod's end stops", A.P_K_STOP, A.P_ML),
-        (A.P_ANCHORAGE, "the anchorage", A.P_KA, A.P_MH),
-        (A.P_SHAFT, "the rudder shaft's torsion", A.P_KT, A.P_JD),
-    )
-    for present, name, stiffness, mass in options:
-        if plant[present] != 0.0:
-            modes.append((name, math.sqrt(plant[stiffness] / plant[mass]), RK4_OSCILLATOR_LIMIT))
-    if plant[A.P_LOAD_MOTOR] != 0.0:
-        modes.append(("the load motor's torque loop", 1.0 / plant[A.P_LM_TAU], RK4_DECAY_LIMIT))
-    return [(name, rate, limit / rate) for name, rate, limit in modes]
+    """(element, rate in rad/s or 1/s, the largest stable h) of the plant's stiff modes, as
+    each present element declares them (emasim.plant.element.Element.modes)."""
+    return [(name, rate, limit / rate) for name, rate, limit in A.PLANT.modes(plant)]
 
 
 def peak_rod_load_N(setup) -> float:

@@ -11,25 +11,16 @@ import numpy as np
 
 from ..jit import njit
 from ..plant import actuator as A
-from ..plant import linkage as L
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def mechanism_rates(x, s, v, t_rudder, p, dx, hinges):
     """dx/dt of the rudder side of the plant state x with the rod at s moving at v (the rod
-    rows of x are set to them); return the linkage's axial force on the rod (N). t_rudder is
-    the rudder load, opposing positive deflection."""
+    rows of x are set to them; the drive's rows of dx are of no use here); return the
+    linkage's axial force on the rod (N), the force the plant's right-hand side exchanges.
+    t_rudder is the rudder load, opposing positive deflection."""
     x[A.X_XL], x[A.X_VL] = s, v
-    t_rocker = A.rudder_side(x, t_rudder, p, dx)
-    return L.linkage_rhs(
-        x[A.X_LINK : A.X_LINK_END],
-        s,
-        v,
-        t_rocker,
-        p[A.P_LINK : A.P_LINK_END],
-        dx[A.X_LINK : A.X_LINK_END],
-        hinges,
-    )
+    return A.rhs(x, 0.0, 0.0, 0.0, 0.0, t_rudder, p, dx, hinges)
 
 
 @njit(cache=True, error_model="numpy")
