@@ -1,4 +1,4 @@
-"""The anchorage: the actuator body on the structure (emasim.plant.anchorage).
+"""The anchorage: the actuator body on the structure (emasim.plant.elements.anchorage).
 
 Checked against closed forms, on sea805-stand made conservative (no friction, no motor
 damping, lossless gearing, no gap width and no contact damping, no load damping) with a
@@ -35,9 +35,9 @@ from helpers import conservative_stand, integrate_plant, relative_error
 
 from emasim.interface import M_POSITION, M_VELOCITY, N_MEAS
 from emasim.plant import actuator as A
-from emasim.plant.anchorage import AnchorageParams
-from emasim.plant.compliance import ComplianceParams
-from emasim.plant.linkage import N_HINGES
+from emasim.plant.elements.anchorage import AnchorageParams
+from emasim.plant.elements.compliance import ComplianceParams
+from emasim.plant.elements.linkage import N_HINGES
 from emasim.plant.presets import sea805
 from emasim.plant.sensors import true_values
 

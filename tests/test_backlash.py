@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from emasim.plant import actuator as A
-from emasim.plant.backlash import dead_zone_force, play_operator
+from emasim.plant.elements.backlash import dead_zone_force, play_operator
 from emasim.sim.engine import simulate
 
 SETTINGS = settings(max_examples=300, deadline=None)

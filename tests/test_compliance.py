@@ -1,4 +1,4 @@
-"""The series spring-damper between the nut and the rod (emasim.plant.compliance).
+"""The series spring-damper between the nut and the rod (emasim.plant.elements.compliance).
 
 Checked against closed forms: the two-mass natural frequency sqrt(k (m1 + m2) / (m1 m2)) and
 the exact eigenfrequency of the three-mass chain it becomes with the node's mass, and the
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from emasim.plant import actuator as A
-from emasim.plant.compliance import ComplianceParams
+from emasim.plant.elements.compliance import ComplianceParams
 from emasim.plant.presets import sea805
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO

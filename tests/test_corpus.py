@@ -44,7 +44,7 @@ from emasim.control.smc import SpeedSMC
 from emasim.control.super_twisting import SpeedSuperTwisting
 from emasim.output import MARKER, foreign_files
 from emasim.plant.contact import ContactParams
-from emasim.plant.linkage import LinkageParams
+from emasim.plant.elements.linkage import LinkageParams
 from emasim.plant.parameters import (
     BacklashParams,
     DrivetrainParams,

@@ -11,7 +11,7 @@ import pytest
 
 from emasim.errors import InputError
 from emasim.experiments.runs import run_scenario
-from emasim.plant.linkage import rudder_angle_of_extension
+from emasim.plant.elements.linkage import rudder_angle_of_extension
 from emasim.scenarios.loader import load_scenario
 
 SHORT = ["duration_s=0.5"]

@@ -11,7 +11,7 @@ deterministic (two runs in one process agree bit for bit, sliding-mode sets incl
 comparison allows only 1e-12 of each column's scale: the round-off of a reordered sum, not a
 changed model.
 
-The end stops (emasim.plant.stops) came after the fingerprints: a run that stays inside the
+The end stops (emasim.plant.elements.stops) came after the fingerprints: a run that stays inside the
 stroke must be unchanged, and one that leaves it is compared up to its last stored row before
 the first stored row beyond the stroke (position-step's PI sets overshoot 120 mm by 5.8 mm,
 onto the 125 mm stop).

@@ -25,7 +25,7 @@ from emasim.experiments.batch import run_comparison
 from emasim.experiments.runs import run_scenario
 from emasim.interface import M_ID, M_IQ, M_SPEED, N_MEAS, N_OUT, N_REF, O_VALUE
 from emasim.plant import actuator as A
-from emasim.plant.motor import limit_voltage
+from emasim.plant.elements.motor import limit_voltage
 from emasim.plant.presets import sea805, sea805_linkage
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO, Step, encode, signal_derivatives, signal_value
@@ -222,7 +222,7 @@ from pathlib import Path
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Slave, Real
 
-from emasim.plant.linkage import N_HINGES, TD, rigid_pose
+from emasim.plant.elements.linkage import N_HINGES, TD, rigid_pose
 from emasim.sim.mechanism import advance
 
 

@@ -1,4 +1,5 @@
-"""Validation of the LuGre friction model (emasim.plant.friction) and of the engine's split scheme.
+"""Validation of the LuGre friction model (emasim.plant.elements.friction) and of the engine's
+split scheme.
 
 Benchmarks come from Canudas de Wit, Olsson, Astrom, Lischinsky, "A new model for control of
 systems with friction", IEEE TAC 40(3), 1995 (CdW95 below), with its parameter set: a mass of
@@ -35,7 +36,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from emasim.plant.friction import (
+from emasim.plant.elements.friction import (
     bristle_damping_for_ratio,
     bristle_half_and_full_step,
     bristle_rate,
@@ -95,7 +96,7 @@ class Trace(NamedTuple):
 
 
 # No cache=True here: numba's cache is keyed to this file only, so a cached _integrate would keep
-# the friction functions it inlined even after src/emasim/plant/friction.py changes.
+# the friction functions it inlined even after src/emasim/plant/elements/friction.py changes.
 @nb.njit
 def _mass_rates(x, v, z, f_time, k):
     """(dv/dt, dz/dt) of the mass with LuGre friction (package functions, CdW95 parameters)."""

@@ -1,4 +1,4 @@
-"""Validation of the clearance-joint linkage (emasim.plant.linkage, emasim.sim.mechanism).
+"""Validation of the clearance-joint linkage (emasim.plant.elements.linkage, emasim.sim.mechanism).
 
 What is checked against what:
 
@@ -27,7 +27,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from emasim.plant import contact as Ct
-from emasim.plant import linkage as L
+from emasim.plant.elements import linkage as L
 from emasim.plant.presets import reference_linkage
 from emasim.sim.mechanism import advance
 

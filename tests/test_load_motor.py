@@ -1,4 +1,5 @@
-"""The bench's load motor (emasim.plant.load_motor): a first-order torque servo on the rudder.
+"""The bench's load motor (emasim.plant.elements.load_motor): a first-order torque servo on the
+rudder.
 
     dT/dt = (clamp(T(t) + T_pre + k_aero theta, -T_max, T_max) - T) / tau,  tau = 1/(2 pi f_b)
 
@@ -15,10 +16,10 @@ import numpy as np
 import pytest
 
 from emasim.plant import actuator as A
-from emasim.plant.linkage import N_HINGES
-from emasim.plant.load_motor import LoadMotorParams
+from emasim.plant.elements.linkage import N_HINGES
+from emasim.plant.elements.load_motor import LoadMotorParams
+from emasim.plant.elements.shaft import ShaftParams
 from emasim.plant.presets import sea805
-from emasim.plant.shaft import ShaftParams
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO, Constant, encode
 from emasim.sim.core import new_workspace

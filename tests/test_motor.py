@@ -11,7 +11,7 @@ from helpers import RPM, facts_of, frictionless_sea805, speed_setup, step_signal
 from scipy.integrate import solve_ivp
 
 from emasim.plant import actuator as A
-from emasim.plant.motor import current_rates, inverter_current_rates
+from emasim.plant.elements.motor import current_rates, inverter_current_rates
 from emasim.sim.engine import simulate
 
 # --- 1. steady iq under load -------------------------------------------------------------------

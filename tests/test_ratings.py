@@ -1,4 +1,4 @@
-"""The drive's rated limits (emasim.plant.ratings) hold whatever a controller commands.
+"""The drive's rated limits (emasim.plant.elements.ratings) hold whatever a controller commands.
 
 Closed forms checked:
 
@@ -33,7 +33,7 @@ from emasim.interface import (
     O_VALUE,
     R_VALUE,
 )
-from emasim.plant.ratings import RECOVERY, SPEED_FOLDBACK
+from emasim.plant.elements.ratings import RECOVERY, SPEED_FOLDBACK
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
 

@@ -1,4 +1,5 @@
-"""The rudder shaft's torsion: rocker arm and inertia disk on a torsion spring (emasim.plant.shaft).
+"""The rudder shaft's torsion: rocker arm and inertia disk on a torsion spring
+(emasim.plant.elements.shaft).
 
 Checked against closed forms, on sea805-stand's lumped stage (rocker angle theta_r = x_L / r,
 r the arm) made conservative (no friction, no motor damping, lossless gearing, no contact
@@ -32,8 +33,8 @@ import pytest
 from helpers import conservative_stand, integrate_plant, relative_error
 
 from emasim.plant import actuator as A
-from emasim.plant.linkage import N_HINGES
-from emasim.plant.shaft import ShaftParams
+from emasim.plant.elements.linkage import N_HINGES
+from emasim.plant.elements.shaft import ShaftParams
 from emasim.signals import ZERO, Constant, encode
 
 K_SHAFT = 2.0e4  # N m/rad: the bench's shaft and torque sensor

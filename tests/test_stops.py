@@ -1,10 +1,11 @@
-"""End stops (emasim.plant.stops): the rod's at both ends of the stroke, the rudder's limits.
+"""End stops (emasim.plant.elements.stops): the rod's at both ends of the stroke, the rudder's
+limits.
 
 Every check is against a reference built here, apart from the plant assembly:
 
 * the coefficient of restitution of a rod thrown onto its stop, against a tight solve_ivp of
   one mass on the same contact law (re-written below in numpy from the docstring of
-  emasim.plant.backlash);
+  emasim.plant.elements.backlash);
 * the static penetration F/k of a rod pushed onto its stop, and the rest angle
   theta_max + F r / k_r of a rudder pushed onto its stop (closed forms);
 * the rudder stop's torque output against the law written out case by case;
@@ -21,9 +22,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from emasim.plant import actuator as A
-from emasim.plant.backlash import dead_zone_force
+from emasim.plant.elements.backlash import dead_zone_force
+from emasim.plant.elements.stops import EndStopParams
 from emasim.plant.presets import sea805
-from emasim.plant.stops import EndStopParams
 from emasim.scenarios.loader import load_scenario
 from emasim.signals import ZERO, Constant, encode
 from emasim.sim.core import new_workspace
@@ -36,8 +37,9 @@ FAR_RUDDER_LIMIT_DEG = 90.0  # beyond the +-30 deg that the stroke gives: never 
 
 
 def contact_law(dx, dv, half_gap, stiffness, damping):
-    """The dead-zone law of emasim.plant.backlash's docstring, in numpy: K (|dx| - b) beyond
-    the gap, plus a damping c dv that acts only in contact and is limited to |c dv| <= |Fc|."""
+    """The dead-zone law of emasim.plant.elements.backlash's docstring, in numpy: K (|dx| - b)
+    beyond the gap, plus a damping c dv that acts only in contact and is limited to
+    |c dv| <= |Fc|."""
     if dx > half_gap:
         spring = stiffness * (dx - half_gap)
     elif dx < -half_gap:

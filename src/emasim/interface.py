@@ -16,7 +16,7 @@ R_ACCEL (second derivative) of its set-point, in the units of the loop.
 
 The drive's limit flags ``LIMIT_*``: bits of the trace column limit_flags, the drive's limits
 that a command sat at in a tick, whether the drive cut it or the law had limited it already
-(emasim.plant.ratings, emasim.sim.engine.control_tick).
+(emasim.plant.elements.ratings, emasim.sim.engine.control_tick).
 
 Output vector ``out`` written by a controller: O_VALUE, the command for the inner loop, and
 O_RATE, its time derivative as far as the controller knows it (used as feed-forward). The

@@ -5,7 +5,7 @@ to the signal it feeds back, for the drive without friction and with its backlas
 about a steady motor speed w0 (default standstill) with id = 0. SI units throughout; every
 symbol below is a deviation from the operating point unless it carries a 0.
 
-Plant (emasim.plant.motor, .drivetrain, .actuator), linearised at (id0 = 0, iq0, w0):
+Plant (emasim.plant.elements.motor, .drivetrain, .actuator), linearised at (id0 = 0, iq0, w0):
 
     Ld did/dt = vd - Rs id + np Lq (w0 iq + iq0 wm)                      (V)
     Lq diq/dt = vq - Rs iq - np (Ld w0 id + psi_f wm)                    (V)

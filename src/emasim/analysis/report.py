@@ -303,8 +303,8 @@ def limits_crossed(result) -> dict:
       past it (a back-driven overspeed is physical; the drive would trip);
     * ``current``: |iq| above the current limit in force (``current_limit_A``: max_current_A,
       or the rated limit). Every current command is held within it and the inverter holds
-      |i_dq| at max_current_A (emasim.plant.motor.inverter_current_rates), so a crossing is a
-      back-EMF beyond what the bus can oppose driving the current past (physical: the
+      |i_dq| at max_current_A (emasim.plant.elements.motor.inverter_current_rates), so a
+      crossing is a back-EMF beyond what the bus can oppose driving the current past (physical: the
       inverter's diodes conduct; emasim models no trip, so it reports it), or the current
       loop's overshoot past a rated limit below max_current_A;
     * ``rod_stroke``: on a plant without end stops, the rod beyond half its stroke from mid

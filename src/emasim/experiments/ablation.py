@@ -7,7 +7,8 @@ The stages, each adding to the one before (:data:`STAGES`):
    the bench's sensors read at every tick, no delay, an ideal rudder load;
 2. **linkage**: the clearance-joint linkage in place of the lumped stage;
 3. **rudder feedback**: the position loop closes on the rudder encoder;
-4. **compliance**: the screw's axial stiffness, the anchorage and the rudder shaft's torsion;
+4. **compliance**: the screw's axial stiffness, the anchorage and the rudder shaft's torsion
+   (every element whose declared ablation stage is the compliance's);
 5. **digital drive**: the one-sample computation delay, the encoder-differenced speed and the
    sensors' own rates (the bench-digital sensors), and the drive's rated limits with the
    rated speed as its speed limit;
@@ -19,6 +20,7 @@ so the last stage is the bench scenario itself and the first is the idealised be
 lumped rudder (preset sea805-linkage's drive: its speed limit, the rudder stage's 1.5 kg m^2).
 """
 
+from ..plant.actuator import ELEMENTS
 from ..plant.presets import PRESETS, bench_digital_sensors, bench_sensors
 from ..scenarios.schema import Scenario
 from .batch import Job, run_jobs
@@ -40,17 +42,25 @@ def _revalidated(scenario: Scenario, **changes) -> Scenario:
     return Scenario.model_validate(data)
 
 
+def _without_stage(plant, stage: str):
+    """The plant without the elements of ``stage`` (their declared ablation stage,
+    emasim.plant.element.Element.stage), with what each one's removal changes elsewhere."""
+    updates = {}
+    for element in ELEMENTS:
+        if element.stage == stage and getattr(plant, element.section) is not None:
+            updates |= element.removed(plant) | {element.section: None}
+    return plant.model_copy(update=updates)
+
+
 def _without_load_motor(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=sc.plant.model_copy(update={"load_motor": None}))
+    return _revalidated(sc, plant=_without_stage(sc.plant, "load motor"))
 
 
 def _without_digital_drive(sc: Scenario) -> Scenario:
     idealised_speed = PRESETS["sea805-linkage"]().motor.max_speed_rpm
-    plant = sc.plant.model_copy(
-        update={
-            "ratings": None,
-            "motor": sc.plant.motor.model_copy(update={"max_speed_rpm": idealised_speed}),
-        }
+    plant = _without_stage(sc.plant, "digital drive")
+    plant = plant.model_copy(
+        update={"motor": plant.motor.model_copy(update={"max_speed_rpm": idealised_speed})}
     )
     sensors = bench_sensors() if sc.sensors == bench_digital_sensors() else sc.sensors
     loop = sc.loop.model_copy(update={"computation_delay_s": 0.0})
@@ -58,15 +68,7 @@ def _without_digital_drive(sc: Scenario) -> Scenario:
 
 
 def _without_compliance(sc: Scenario) -> Scenario:
-    plant = sc.plant
-    linkage = plant.linkage
-    if plant.rudder_shaft is not None and linkage is not None:  # the disk back on the rudder
-        inertia = linkage.rudder_inertia_kgm2 + plant.rudder_shaft.disk_inertia_kgm2
-        linkage = linkage.model_copy(update={"rudder_inertia_kgm2": inertia})
-    plant = plant.model_copy(
-        update={"compliance": None, "anchorage": None, "rudder_shaft": None, "linkage": linkage}
-    )
-    return _revalidated(sc, plant=plant)
+    return _revalidated(sc, plant=_without_stage(sc.plant, "compliance"))
 
 
 def _without_rudder_feedback(sc: Scenario) -> Scenario:
@@ -74,7 +76,7 @@ def _without_rudder_feedback(sc: Scenario) -> Scenario:
 
 
 def _without_linkage(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=sc.plant.model_copy(update={"linkage": None}))
+    return _revalidated(sc, plant=_without_stage(sc.plant, "linkage"))
 
 
 _TAKE_OUT = (  # what takes each stage back to the one before it, from the last stage down

@@ -1,31 +1,17 @@
-"""The assembled actuator: state layout, parameter layout and right-hand side.
+"""The assembled actuator: its elements, their layouts and the generated right-hand side.
 
-Bodies: the motor rotor (with screw and nut, angle theta_m) and the load side (rod plus the
-lumped rudder stage, position x_L). Between them the total drive-train backlash acts at the nut,
-where the nut position is x_h + K theta_m (K from :mod:`emasim.plant.drivetrain`, x_h the
-actuator body's displacement on its anchorage, 0 without one):
+The elements (one module each in emasim.plant.elements) lay out the plant from the motor
+outward: the PMSM and its rotor (motor), the friction on its shaft, the gearbox and roller
+screw that move the nut with the shaft (transmission, a node that follows the screw), the
+backlash gap between the nut and what lies beyond it, the rod with the lumped rudder stage
+(rod), the end stops, the drive's ratings, and the optional series compliance (a node
+between the gap and the rod), anchorage (the body the nut and the rod's stops ride on),
+rudder shaft torsion (the inertia disk behind the rocker arm), load motor (on the disk) and
+clearance-joint linkage (the rocker arm's motion in place of the lumped stage's x_L / r).
+Each module states its own equations; the scenario's loads (TL on the motor shaft, F_L on
+the rod, T(t) on the rudder side) are evaluated by the caller.
 
-    dx = x_h + K theta_m - x_L,  dv = v_h + K wm - v_L,  Fb = dead_zone_force(dx, dv)   (N)
-    J dwm/dt   = Te - B wm - Tf(wm, z) - TL(t) - reflected_torque(Fb, wm)        (N*m)
-    M_L dv_L/dt = Fb + F_stop - F_L(t) + T_r / r - c_L v_L                        (N)
-    dz/dt       = LuGre bristle rate on wm                                        (rad/s)
-
-plus the dq current equations of :mod:`emasim.plant.motor`. F_stop is the rod's end stops
-(emasim.plant.stops) and T_r the torque on the rudder side: the rudder's stops, less the load
-(the ideal T(t), or the load motor of emasim.plant.load_motor), or less the shaft's torque
-when the rudder shaft's torsion (emasim.plant.shaft) carries the inertia disk. With the
-clearance-joint linkage (emasim.plant.linkage) in place of the lumped rudder, M_L is the rod
-alone, the rod feels the linkage's axial push and the centripetal term of the swinging
-actuator, T_r acts on the linkage's rocker arm, and
-
-    m_rod dv_L/dt = Fb + F_stop + F_axial - F_L(t) - c_L v_L + m_rod r phi'^2,
-
-and the linkage's 16 states follow the drive's rod. The series compliance
-(emasim.plant.compliance) and the anchorage (emasim.plant.anchorage) add their nodes. TL(t) is
-a load torque on the motor shaft (the paper's TL), F_L(t) an external force on the rod and
-T(t) the rudder load; all three are evaluated by the caller.
-
-Each element declares these terms itself (its bodies, couplings, laws, forces and rates:
+Each element declares its terms (its bodies, couplings, laws, forces and rates:
 emasim.plant.element); :data:`rhs`, :data:`plant_outputs` and :data:`active_states` are
 generated from :data:`ELEMENTS` by emasim.plant.assembly. States and parameters are flat
 float64 arrays whose indices are looked up by name in the same declarations. An absent
@@ -33,102 +19,17 @@ element's states stay zero.
 """
 
 from ..jit import njit
-from . import friction as fr
-from . import linkage as L
-from .anchorage import ANCHORAGE
 from .assembly import load
-from .backlash import BACKLASH
-from .compliance import COMPLIANCE
-from .drivetrain import TRANSMISSION
-from .element import (
-    Body,
-    Element,
-    Law,
-    Quantity,
-    State,
-    assemble,
-    rod_position_bound,
-    rod_velocity_bound,
-    total,
-    viscous_force,
-)
-from .friction import FRICTION
-from .linkage import LOAD_HELD, LOAD_LINKAGE, LOAD_LUMPED  # noqa: F401 - part of this API
-from .load_motor import LOAD_MOTOR
-from .motor import MOTOR
-from .ratings import RATINGS
-from .shaft import RUDDER_SHAFT
-from .stops import END_STOPS
+from .element import assemble, ordered
+from .elements import discover
+from .elements import friction as fr
+from .elements import linkage as L
+from .elements.linkage import LOAD_HELD, LOAD_LINKAGE, LOAD_LUMPED  # noqa: F401 - this API
 
-ROD = Element(
-    "rod",
-    "the rod and the lumped rudder stage (rudder angle = rod position / arm), or the rod alone "
-    "when the linkage carries the rudder",
-    states=(
-        State(
-            "actuator_position_m",
-            "m",
-            "rod (load-side) position",
-            atol=1e-14,
-            bound=rod_position_bound,
-        ),
-        State("actuator_velocity_m_s", "m/s", "rod velocity", atol=1e-12, bound=rod_velocity_bound),
-    ),
-    params=(
-        Quantity("load_mass_kg", "kg", "M_L: rod + lumped rudder, or the rod alone"),
-        Quantity("load_viscous_Ns_per_m", "N s/m", "c_L"),
-        Quantity("rudder_arm_m", "m", "lumped stage: rudder angle = x_L / arm"),
-        Quantity("load_model", "1", "LOAD_LUMPED or LOAD_LINKAGE"),
-    ),
-    outputs=(
-        Quantity("rudder_angle_rad", "rad", "rudder angle"),
-        Quantity("drivetrain_force_N", "N", "force of the drive train on the rod"),
-    ),
-    # M_L dv_L/dt = F_drive + F_stop + F_axial - F_L + F_lever - c_L v_L (+ r phi'^2 M_L)
-    bodies=(
-        Body(
-            "rod",
-            "actuator_position_m",
-            "actuator_velocity_m_s",
-            "load_mass_kg",
-            order=(
-                "fold_far",
-                "compliance",
-                "end_stops",
-                "linkage__axial",
-                "f_load",
-                "linkage__lever",
-                "rod",
-            ),
-        ),
-    ),
-    laws=(
-        Law(viscous_force, ("p.load_viscous_Ns_per_m", "rod.v"), ("viscous",)),
-        # what a load cell on the rod reads: the compliance spring's push, or without the
-        # compliance what the gap passes on to the rod
-        Law(total, ("far|rod.fold", "-compliance.force"), ("drive_force",), always=True),
-    ),
-    forces=(("rod", "-in.f_load"), ("rod", "-viscous")),
-    values=(("rudder_angle_rad", "rocker.x"), ("drivetrain_force_N", "drive_force")),
-)
-
-# the plant's elements, in the order of the state and parameter vectors (optional elements
-# with states last, the linkage's 16 at the very end, so that a plant integrates only up to
-# the end of its last element: active_states)
-ELEMENTS = (
-    MOTOR,
-    FRICTION,
-    TRANSMISSION,
-    BACKLASH,
-    ROD,
-    END_STOPS,
-    RATINGS,
-    COMPLIANCE,
-    ANCHORAGE,
-    RUDDER_SHAFT,
-    LOAD_MOTOR,
-    L.LINKAGE,
-)
+# the plant's elements (every module of emasim.plant.elements), in the order of the state and
+# parameter vectors: each after the element it names, the mechanism's last (optional elements
+# with states after the drive's, the linkage's 16 at the very end: active_states)
+ELEMENTS = ordered(discover())
 PLANT = assemble(ELEMENTS)
 GENERATED = load(PLANT, hold=("load_model", LOAD_HELD))
 rhs = GENERATED.rhs  # (x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges): dx/dt of x
@@ -177,9 +78,6 @@ P_TC = PLANT.params.index("coulomb_Nm")
 P_TS = PLANT.params.index("static_Nm")
 P_WS = PLANT.params.index("stribeck_speed_rad_s")
 P_SIGMA0 = PLANT.params.index("bristle_stiffness_Nm_per_rad")
-P_SIGMA1 = PLANT.params.index("bristle_damping_Nms_per_rad")
-P_SIGMA2 = PLANT.params.index("friction_viscous_Nms_per_rad")
-P_W_SMOOTH = PLANT.params.index("smoothing_speed_rad_s")
 P_HALF_GAP = PLANT.params.index("backlash_half_gap_m")
 P_KB = PLANT.params.index("backlash_stiffness_N_per_m")
 P_CB = PLANT.params.index("backlash_damping_Ns_per_m")
@@ -191,13 +89,9 @@ P_COMPLIANCE = PLANT.params.index("compliance_present")
 P_KS = PLANT.params.index("compliance_stiffness_N_per_m")
 P_CS = PLANT.params.index("compliance_damping_Ns_per_m")
 P_MN = PLANT.params.index("compliance_node_mass_kg")
-P_STOPS = PLANT.params.index("end_stops_present")
 P_HALF_STROKE = PLANT.params.index("stroke_half_m")
 P_K_STOP = PLANT.params.index("stop_stiffness_N_per_m")
 P_C_STOP = PLANT.params.index("stop_damping_Ns_per_m")
-P_RUDDER_LIMIT = PLANT.params.index("rudder_limit_rad")
-P_K_RUDDER_STOP = PLANT.params.index("rudder_stop_stiffness_Nm_per_rad")
-P_C_RUDDER_STOP = PLANT.params.index("rudder_stop_damping_Nms_per_rad")
 P_RATINGS = PLANT.params.index("ratings_present")
 P_W_RATED = PLANT.params.index("rated_speed_rad_s")
 P_I_CONT = PLANT.params.index("continuous_current_A")
@@ -210,12 +104,10 @@ P_SHAFT = PLANT.params.index("shaft_present")
 P_KT = PLANT.params.index("shaft_stiffness_Nm_per_rad")
 P_CT = PLANT.params.index("shaft_damping_Nms_per_rad")
 P_JD = PLANT.params.index("disk_inertia_kgm2")
-P_LOAD_MOTOR = PLANT.params.index("load_motor_present")
 P_LM_TAU = PLANT.params.index("load_motor_time_constant_s")
-P_LM_SPRING = PLANT.params.index("load_motor_spring_Nm_per_rad")
-P_LM_PRELOAD = PLANT.params.index("load_motor_preload_Nm")
-P_LM_MAX = PLANT.params.index("load_motor_max_torque_Nm")
-P_LINK = PLANT.param_offset["linkage"]  # the linkage's parameters (emasim.plant.linkage layout)
+P_LINK = PLANT.param_offset[
+    "linkage"
+]  # the linkage's parameters (emasim.plant.elements.linkage layout)
 P_LINK_END = P_LINK + L.N_LINK_PARAMS
 
 FRICTION_NONE = fr.FRICTION_NONE

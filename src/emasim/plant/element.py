@@ -19,6 +19,7 @@ the plant's element order. Index constants (``X_IQ``, ``P_KB``) are then looked 
 module-level constants.
 """
 
+import heapq
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -168,6 +169,16 @@ class Element:
     and the stable step (``value(name)`` reads a packed parameter, ``mass(port)`` the mass of
     the body at a port, that of its alias while it is absent). ``mechanism`` marks the
     rudder side, which a co-simulation integrates apart (emasim.sim.mechanism).
+
+    Its place and configuration: ``after`` names the element it follows in the vectors (the
+    first has none; the mechanism's elements come after the drive's); ``section`` the
+    PlantParams field that configures it, whose model is ``config`` for an optional element
+    (emasim.plant.parameters adds the field); ``pack(plant)`` its parameters' SI values by
+    name from a validated PlantParams (an optional element's presence parameter is then 1),
+    ``initial(plant)`` its states' initial values (0 where it names none), ``reflected(plant)``
+    the inertia it adds at the motor shaft (kg m^2) and the mass it adds at the rod (kg), for
+    design; ``stage`` the ablation stage (emasim.experiments.ablation) whose removal takes it
+    out, with ``removed(plant)`` the other sections' changes its removal needs.
     """
 
     name: str
@@ -185,6 +196,14 @@ class Element:
     values: tuple[tuple[str, str], ...] = ()
     modes: Callable = field(default=lambda value, mass: [], compare=False)
     mechanism: bool = False
+    after: str | None = None  # the element it follows in the state and parameter vectors
+    section: str | None = None  # the PlantParams section that configures it
+    config: type | None = None  # an optional element's section model (None: a fixed section)
+    pack: Callable = field(default=lambda plant: {}, compare=False)
+    initial: Callable = field(default=lambda plant: {}, compare=False)
+    reflected: Callable = field(default=lambda plant: (0.0, 0.0), compare=False)
+    stage: str | None = None  # the ablation stage that takes the element out
+    removed: Callable = field(default=lambda plant: {}, compare=False)
 
 
 class Layout:
@@ -278,6 +297,30 @@ class PlantLayout:
     def atol(self) -> np.ndarray:
         """Every state's absolute tolerance, for the reference solver."""
         return np.array([s.atol for s in self.states.quantities], dtype=np.float64)
+
+
+def ordered(elements: Sequence[Element]) -> tuple[Element, ...]:
+    """The elements in the order of the vectors: each after the element it names in ``after``
+    (the drive's before the mechanism's, then by name, where several follow one)."""
+    by_name = {e.name: e for e in elements}
+    followers: dict[str | None, list[Element]] = {}
+    for element in elements:
+        if element.after is not None and element.after not in by_name:
+            raise ValueError(
+                f"element '{element.name}' follows '{element.after}', not a plant element"
+            )
+        followers.setdefault(element.after, []).append(element)
+    ready = [(e.mechanism, e.name) for e in followers.get(None, [])]
+    heapq.heapify(ready)
+    out = []
+    while ready:
+        element = by_name[heapq.heappop(ready)[1]]
+        out.append(element)
+        for follower in followers.get(element.name, []):
+            heapq.heappush(ready, (follower.mechanism, follower.name))
+    if len(out) != len(elements):
+        raise ValueError("the elements' 'after' names make a loop")
+    return tuple(out)
 
 
 def assemble(elements: Sequence[Element]) -> PlantLayout:

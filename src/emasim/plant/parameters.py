@@ -11,24 +11,16 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, create_model, model_validator
 
 from ..config import MM, RPM, Strict  # noqa: F401 - RPM and Strict are part of this API
 from ..interface import MEASUREMENT_NAMES
 from . import actuator as A
-from . import linkage as L
-from .anchorage import AnchorageParams
-from .compliance import ComplianceParams
-from .drivetrain import transmission_ratio
-from .element import damping_for_ratio
-from .friction import bristle_damping_for_ratio
-from .linkage import LinkageParams
-from .load_motor import LoadMotorParams
-from .motor import torque_constant
-from .ratings import RatingsParams
+from .elements import linkage as L
+from .elements.drivetrain import transmission_ratio
+from .elements.linkage import LinkageParams
+from .elements.motor import torque_constant
 from .sensors import S_ALPHA, S_ERROR, S_EVERY, S_PERIOD, S_SOURCE, S_WAVENUMBER, ideal_table
-from .shaft import ShaftParams
-from .stops import EndStopParams
 
 
 class MotorParams(Strict):
@@ -233,8 +225,11 @@ def check_linkage_closes(linkage: LinkageParams, stroke_mm: float) -> None:
         )
 
 
-class PlantParams(Strict):
-    """The whole actuator: motor, drive train, friction, backlash, load.
+class FixedPlant(Strict):
+    """The whole actuator: motor, drive train, friction, backlash, load, and one optional
+    section for each optional element (its ``section``, of its ``config`` model: the
+    linkage, end_stops, ratings, compliance, anchorage, rudder_shaft, load_motor sections),
+    added from the elements' declarations to make :data:`PlantParams`.
 
     With ``linkage`` set, the clearance-joint linkage replaces the lumped rudder stage: the rod
     mass comes from the linkage, and the load section keeps only its viscous damping (its
@@ -246,13 +241,6 @@ class PlantParams(Strict):
     friction: FrictionParams
     backlash: BacklashParams
     load: LoadParams
-    linkage: LinkageParams | None = None
-    end_stops: EndStopParams | None = None
-    ratings: RatingsParams | None = None
-    compliance: ComplianceParams | None = None
-    anchorage: AnchorageParams | None = None
-    rudder_shaft: ShaftParams | None = None
-    load_motor: LoadMotorParams | None = None
 
     @model_validator(mode="after")
     def _physically_consistent(self):
@@ -337,16 +325,17 @@ class PlantParams(Strict):
 
     @property
     def total_inertia_kgm2(self) -> float:
-        """Motor inertia plus load mass (with the compliance's node, and the inertia disk and
-        load motor behind the rudder shaft's torsion) reflected to the motor shaft,
-        J + (M + m_n + J_d / r^2) K^2 (kg*m^2), r = rod_per_rudder_m_per_rad."""
-        node = self.compliance.node_mass_kg if self.compliance is not None else 0.0
-        disk = 0.0
-        if self.rudder_shaft is not None:
-            disk_inertia = self.rudder_shaft.disk_inertia_kgm2 + self.load_motor_inertia_kgm2
-            disk = disk_inertia / self.rod_per_rudder_m_per_rad**2
-        moving = self.load_mass_kg + node + disk
-        return self.motor.inertia_kgm2 + moving * self.ratio_m_per_rad**2
+        """The motor's inertia with what each present element adds at its shaft, and the load
+        mass with what each adds at the rod, reflected to the motor shaft:
+        J + sum J_e + (M + sum m_e) K^2 (kg*m^2), from the elements' ``reflected``
+        (emasim.plant.element.Element): the compliance's node, the inertia disk and the load
+        motor behind the rudder shaft's torsion, through the lever."""
+        at_motor, moving = self.motor.inertia_kgm2, self.load_mass_kg
+        for element in A.ELEMENTS:
+            if getattr(self, element.section) is not None:
+                motor_side, rod_side = element.reflected(self)
+                at_motor, moving = at_motor + motor_side, moving + rod_side
+        return at_motor + moving * self.ratio_m_per_rad**2
 
     @property
     def torque_constant_Nm_per_A(self) -> float:
@@ -354,106 +343,37 @@ class PlantParams(Strict):
         return torque_constant(self.motor.pole_pairs, self.motor.flux_linkage_Wb)
 
     def pack(self) -> np.ndarray:
-        """The flat SI parameter array read by the compiled plant."""
-        m, d, f, b, ld = self.motor, self.drivetrain, self.friction, self.backlash, self.load
-        k = self.ratio_m_per_rad
-        motor_mass = m.inertia_kgm2 / k**2  # motor inertia seen at the nut, kg
-        beyond_gap = self.load_mass_kg if self.compliance is None else self.compliance.node_mass_kg
-        reduced = motor_mass * beyond_gap / (motor_mass + beyond_gap)
+        """The flat SI parameter array read by the compiled plant: each present element's
+        values (emasim.plant.element.Element.pack), its presence parameter 1; an absent
+        element's parameters stay 0."""
         p = np.zeros(A.N_PARAMS)
-        p[A.P_RS] = m.resistance_ohm
-        p[A.P_LD] = m.inductance_d_H
-        p[A.P_LQ] = m.inductance_q_H
-        p[A.P_PSI] = m.flux_linkage_Wb
-        p[A.P_NP] = m.pole_pairs
-        p[A.P_J] = m.inertia_kgm2
-        p[A.P_B] = m.viscous_Nms_per_rad
-        p[A.P_K] = k
-        p[A.P_ETA] = d.gear_efficiency * d.screw_efficiency
-        p[A.P_FRICTION] = {
-            "none": A.FRICTION_NONE,
-            "coulomb": A.FRICTION_COULOMB,
-            "lugre": A.FRICTION_LUGRE,
-        }[f.model]
-        p[A.P_TC] = f.coulomb_Nm
-        p[A.P_TS] = f.static_Nm
-        p[A.P_WS] = f.stribeck_speed_rad_s
-        p[A.P_SIGMA0] = f.bristle_stiffness_Nm_per_rad
-        p[A.P_SIGMA1] = bristle_damping_for_ratio(
-            f.bristle_damping_ratio,
-            f.bristle_stiffness_Nm_per_rad,
-            m.inertia_kgm2,
-            f.viscous_Nms_per_rad,
-        )
-        p[A.P_SIGMA2] = f.viscous_Nms_per_rad
-        p[A.P_W_SMOOTH] = f.smoothing_speed_rad_s
-        p[A.P_HALF_GAP] = 0.5 * b.width_mm * MM
-        p[A.P_KB] = b.stiffness_N_per_m
-        p[A.P_CB] = damping_for_ratio(b.damping_ratio, b.stiffness_N_per_m, reduced)
-        p[A.P_ML] = self.load_mass_kg
-        p[A.P_CL] = ld.viscous_Ns_per_m
-        p[A.P_ARM] = ld.rudder_arm_mm * MM
-        p[A.P_UDC] = m.dc_bus_V
-        p[A.P_IMAX] = m.max_current_A
-        p[A.P_WMAX] = m.max_speed_rpm * RPM
-        if self.compliance is not None:
-            p[A.P_COMPLIANCE] = 1.0
-            p[A.P_KS] = self.compliance.stiffness_N_per_m
-            p[A.P_CS] = self.compliance.damping_Ns_per_m
-            p[A.P_MN] = self.compliance.node_mass_kg
-        if self.linkage is not None:
-            p[A.P_LOAD_MODEL] = A.LOAD_LINKAGE
-            p[A.P_ML] = self.linkage.rod_mass_kg
-            p[A.P_LINK : A.P_LINK_END] = self.linkage.pack()
-            p[A.P_LINK + L.J_D] = self.rudder_inertia_kgm2
-        self._pack_options(p)
+        for element in A.ELEMENTS:
+            if getattr(self, element.section) is None:
+                continue
+            values = element.pack(self)
+            if element.presence in (q.name for q in element.params):
+                values[element.presence] = 1.0
+            for name, value in values.items():
+                p[A.PLANT.params.index(name)] = value
         return p
 
-    def _pack_options(self, p: np.ndarray) -> None:
-        """Pack the optional elements of emasim.plant.stops, .ratings, .anchorage, .shaft and
-        .load_motor (their presence parameters stay 0 when absent)."""
-        if self.end_stops is not None:
-            e = self.end_stops
-            p[A.P_STOPS] = 1.0
-            p[A.P_HALF_STROKE] = 0.5 * self.drivetrain.stroke_mm * MM
-            p[A.P_K_STOP] = e.stiffness_N_per_m
-            p[A.P_C_STOP] = e.damping_Ns_per_m
-            p[A.P_RUDDER_LIMIT] = math.radians(e.rudder_limit_deg)
-            p[A.P_K_RUDDER_STOP] = e.rudder_stiffness_Nm_per_rad
-            p[A.P_C_RUDDER_STOP] = e.rudder_damping_Nms_per_rad
-        if self.ratings is not None:
-            r, i_peak = self.ratings, self.motor.max_current_A
-            p[A.P_RATINGS] = 1.0
-            p[A.P_W_RATED] = r.rated_speed_rpm * RPM
-            p[A.P_I_CONT] = r.continuous_current_A
-            p[A.P_HEAT_CAPACITY] = (i_peak**2 - r.continuous_current_A**2) * r.peak_current_s
-        if self.anchorage is not None:
-            a = self.anchorage
-            p[A.P_ANCHORAGE] = 1.0
-            p[A.P_KA], p[A.P_CA], p[A.P_MH] = (
-                a.stiffness_N_per_m,
-                a.damping_Ns_per_m,
-                a.housing_mass_kg,
-            )
-        if self.rudder_shaft is not None:
-            sh = self.rudder_shaft
-            p[A.P_SHAFT] = 1.0
-            p[A.P_KT], p[A.P_CT] = sh.stiffness_Nm_per_rad, sh.damping_Nms_per_rad
-            p[A.P_JD] = sh.disk_inertia_kgm2 + self.load_motor_inertia_kgm2
-        if self.load_motor is not None:
-            lm = self.load_motor
-            p[A.P_LOAD_MOTOR] = 1.0
-            p[A.P_LM_TAU] = lm.time_constant_s
-            p[A.P_LM_SPRING] = math.degrees(lm.spring_Nm_per_deg)
-            p[A.P_LM_PRELOAD] = lm.preload_Nm
-            p[A.P_LM_MAX] = lm.max_torque_Nm
-
     def initial_state(self) -> np.ndarray:
-        """Plant state at rest at mid stroke: currents, speeds zero; the linkage in its rigid
-        pose (every pin centred in its hole)."""
+        """Plant state at rest at mid stroke: currents and speeds zero, and what each present
+        element starts at (the linkage's rigid pose, every pin centred in its hole; the load
+        motor's standing preload, acting from t = 0)."""
         x = np.zeros(A.N_STATE)
-        if self.linkage is not None:
-            x[A.X_LINK : A.X_LINK_END] = L.rigid_pose(0.0, self.linkage.pack())
-        if self.load_motor is not None:  # the standing preload acts from t = 0
-            x[A.X_TLM] = self.load_motor.preload_Nm
+        for element in A.ELEMENTS:
+            if getattr(self, element.section) is not None:
+                for name, value in element.initial(self).items():
+                    x[A.PLANT.states.index(name)] = value
         return x
+
+
+# the plant's sections: the fixed ones, and an optional one for each optional element
+PlantParams = create_model(
+    "PlantParams",
+    __base__=FixedPlant,
+    __module__=__name__,
+    __doc__=FixedPlant.__doc__,
+    **{e.section: (e.config | None, None) for e in A.ELEMENTS if e.config is not None},
+)

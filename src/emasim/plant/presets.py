@@ -7,13 +7,16 @@ docs/assumptions in the README). Scenario files start from :data:`PRESETS` and o
 
 import math
 
-from .anchorage import AnchorageParams
-from .compliance import ComplianceParams
 from .contact import ContactParams
-from .drivetrain import transmission_ratio
 from .element import damping_for_ratio
-from .linkage import LinkageParams
-from .load_motor import LoadMotorParams
+from .elements.anchorage import AnchorageParams
+from .elements.compliance import ComplianceParams
+from .elements.drivetrain import transmission_ratio
+from .elements.linkage import LinkageParams
+from .elements.load_motor import LoadMotorParams
+from .elements.ratings import RatingsParams
+from .elements.shaft import ShaftParams
+from .elements.stops import EndStopParams
 from .parameters import (
     BacklashParams,
     DrivetrainParams,
@@ -24,9 +27,6 @@ from .parameters import (
     SensorChannel,
     SensorParams,
 )
-from .ratings import RatingsParams
-from .shaft import ShaftParams
-from .stops import EndStopParams
 
 
 def paper_motor() -> MotorParams:

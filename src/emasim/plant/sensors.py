@@ -24,7 +24,7 @@ offset, noise and quantum then apply to f. Noise draws come from numba's generat
 once per run, so a run is reproducible from its seed.
 
 The rod's displacement sensor sits on the actuator body, so it reads the rod's extension
-x_L - x_h (emasim.plant.anchorage).
+x_L - x_h (emasim.plant.elements.anchorage).
 """
 
 import math
@@ -44,7 +44,7 @@ from ..interface import (
 )
 from ..jit import njit
 from . import actuator as A
-from .backlash import play_operator
+from .elements.backlash import play_operator
 
 # columns of the sensor table built by emasim.plant.parameters.SensorParams.pack
 S_RESOLUTION = 0

@@ -16,6 +16,7 @@ sqrt(k (1/m + 1/m_anchor)), with m_anchor infinite for a fixed anchor.
 """
 
 import math
+from collections.abc import Callable
 
 from ..jit import njit
 from .element import RK4_OSCILLATOR_LIMIT, Body, Coupling, Element, Quantity, State, two_body_rate
@@ -39,13 +40,20 @@ def spring_damper(
     rigid_anchor: bool = False,
     output_on_anchor: bool = False,
     order: tuple[str, ...] = (),
+    pack: Callable = lambda section, plant: {},
+    at_motor: Callable | None = None,
+    at_rod: Callable | None = None,
+    stage: str = "compliance",
     **extra,
 ) -> Element:
     """A spring-damper element (module docstring). ``states`` are the body's (position,
     velocity); ``params`` (presence, stiffness, damping, mass) by name; ``output`` the force
     on the body (on the anchor with ``output_on_anchor``); ``mode`` names its natural mode,
     ``rigid_anchor`` treats the anchor as fixed in it; ``order`` orders the body's equation
-    (emasim.plant.element.Body). ``extra`` adds laws, values and outputs of the element's own.
+    (emasim.plant.element.Body). ``pack(section, plant)`` gives its parameters from its
+    section; ``at_motor(plant)`` and ``at_rod(plant)`` the inertia (kg m^2) and mass (kg) its
+    body adds at the motor shaft or at the rod. Its ablation ``stage`` is the compliance's.
+    ``extra`` passes the rest to the Element (its place and section, laws, values, outputs).
     """
     presence, stiffness, damping, mass = (q.name for q in params)
     position, velocity = (s.name for s in states)
@@ -66,5 +74,11 @@ def spring_damper(
         couplings=(Coupling(spring_damper_force, anchor, node, (stiffness, damping)),),
         values=((output.name, "-force" if output_on_anchor else "force"), *extra.pop("values", ())),
         modes=modes,
+        pack=lambda plant: pack(getattr(plant, extra["section"]), plant),
+        reflected=lambda plant: (
+            at_motor(plant) if at_motor else 0.0,
+            at_rod(plant) if at_rod else 0.0,
+        ),
+        stage=stage,
         **extra,
     )

@@ -21,7 +21,7 @@ from ..control.registry import CASCADES, PositionController, SpeedController
 from ..interface import MEASUREMENT_NAMES as MEASUREMENT_CHANNELS
 from ..output import slug
 from ..plant import actuator as A
-from ..plant.linkage import rudder_angle_of_extension
+from ..plant.elements.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
 from ..signals import Table, Term, encode, lookup_table, signal_value, signal_values

@@ -43,7 +43,7 @@ from numba import types
 
 from ..control.slot import CONTROLLER_TYPE, controller_signature
 from ..plant.actuator import N_STATE
-from ..plant.linkage import N_HINGES
+from ..plant.elements.linkage import N_HINGES
 
 F8 = types.float64
 I8 = types.int64
@@ -165,7 +165,7 @@ class Data(NamedTuple):
 
 
 # the drive's state (Data.drive), kept from tick to tick
-D_HEAT = 0  # I^2 t heat above the continuous rating (A^2 s; emasim.plant.ratings)
+D_HEAT = 0  # I^2 t heat above the continuous rating (A^2 s; emasim.plant.elements.ratings)
 D_UD = 1  # the voltage applied until the delayed command takes over (V)
 D_UQ = 2
 D_CURRENT_LIMIT = 3  # the current limit in force at the last tick (A)

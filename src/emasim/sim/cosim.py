@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..plant import actuator as A
-from ..plant import linkage as L
+from ..plant.elements import linkage as L
 from ..signals import ZERO, Constant, encode, signal_value
 from .engine import EngineRun
 from .mechanism import advance_rudder_side

@@ -23,8 +23,8 @@ Otherwise the likely cause is the controller: gains that make the sampled loop u
 import numpy as np
 
 from ..plant import actuator as A
-from ..plant import linkage as L
-from ..plant.motor import torque_constant
+from ..plant.elements import linkage as L
+from ..plant.elements.motor import torque_constant
 from ..signals import signal_value
 
 SAFE_FRACTION = 0.5  # suggest a step with this margin below the limit

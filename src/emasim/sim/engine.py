@@ -2,7 +2,7 @@
 
 At tick k (t = k Ts) the sensors are read, the position controller (if the reference is a
 position) and the speed controller run, and the current loop computes the stator voltage. The
-drive holds its limits on every command (emasim.plant.ratings). After the computation delay
+drive holds its limits on every command (emasim.plant.elements.ratings). After the computation delay
 Td (a whole number of sub-steps, at most Ts) the voltage is applied and held (zero-order hold);
 until then the previous one acts. The plant is integrated over Ts with n fixed RK4 sub-steps
 of h = Ts/n. The LuGre bristle state is not advanced by RK4: in every stage it takes its exact
@@ -41,8 +41,8 @@ from ..interface import (
 from ..jit import njit
 from ..numerics import clamp
 from ..plant import actuator as A
-from ..plant.motor import limit_voltage
-from ..plant.ratings import folded_back, heat_update, speed_foldback
+from ..plant.elements.motor import limit_voltage
+from ..plant.elements.ratings import folded_back, heat_update, speed_foldback
 from ..plant.sensors import measure, seed_noise
 from ..signals import signal_derivatives, signal_value
 from .borrowed import borrowed_record
@@ -101,7 +101,7 @@ LAW_FAILED = 3  # a law's output was not finite (or it raised: emasim.sim.lawgua
 def current_bounds(p, drive, speed):
     """The drive's current command bounds (lower, upper) in A at measured speed ``speed``, and
     the limit in force: max_current_A, or with the ratings the continuous current while the
-    I^2 t protection holds it (emasim.plant.ratings), folded back near the rated speed."""
+    I^2 t protection holds it (emasim.plant.elements.ratings), folded back near the rated speed."""
     i_lim = p[A.P_IMAX]
     if p[A.P_RATINGS] == 0.0:
         return -i_lim, i_lim, i_lim

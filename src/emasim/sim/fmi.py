@@ -44,7 +44,7 @@ import numpy as np
 from ..errors import EmasimError, InputError
 from ..jit import njit
 from ..plant import actuator as A
-from ..plant import linkage as L
+from ..plant.elements import linkage as L
 from .engine import plant_step
 
 PLANT_RESOURCE = "emasim_plant.json"  # file name of the parameters inside the FMU's resources
@@ -167,8 +167,8 @@ def export_mechanism_fmu(path, plant=None, force: bool = False) -> Path:
     ``plant`` is a :class:`~emasim.plant.parameters.PlantParams` with a linkage (default: the
     ``sea805-linkage`` preset); its packed linkage parameters are stored in the FMU (resource
     ``emasim_mechanism.json``). The slave wraps :func:`emasim.sim.mechanism.advance` and starts
-    in :func:`emasim.plant.linkage.rigid_pose` at the initial ``rod_position_m``. As for the
-    plant FMU, emasim must be importable in the Python that runs it.
+    in :func:`emasim.plant.elements.linkage.rigid_pose` at the initial ``rod_position_m``. As
+    for the plant FMU, emasim must be importable in the Python that runs it.
     """
     from ..version import __version__
 
@@ -381,7 +381,7 @@ class FmuMechanism:
     rudder shaft, positive opposing positive deflection, as the plant FMU's and the
     scenario's ``load.rudder_torque_Nm``), a parameter ``step_s`` (set to the drive's
     sub-step), and
-    outputs named as the 16 linkage states (:data:`emasim.plant.linkage.LINK_STATE_NAMES`);
+    outputs named as the 16 linkage states (:data:`emasim.plant.elements.linkage.LINK_STATE_NAMES`);
     without them the result's linkage columns are NaN but for the rudder angle and rate
     (see :meth:`read`).
     """

@@ -14,7 +14,7 @@ from scipy.integrate import solve_ivp
 
 from ..jit import njit
 from ..plant import actuator as A
-from ..plant import linkage as L
+from ..plant.elements import linkage as L
 from ..plant.sensors import seed_noise
 from ..signals import signal_value
 from .engine import TRACE_COLUMNS, control_tick, record

@@ -15,7 +15,9 @@ CONTROL_COLUMNS = (
     Quantity("position_ref_m", "m", "rod position reference (NaN in a speed-loop run)"),
     Quantity("ud_V", "V", "d-axis stator voltage command, limited by the inverter"),
     Quantity("uq_V", "V", "q-axis stator voltage command, limited by the inverter"),
-    Quantity("current_limit_A", "A", "the drive's current limit in force (emasim.plant.ratings)"),
+    Quantity(
+        "current_limit_A", "A", "the drive's current limit in force (emasim.plant.elements.ratings)"
+    ),
     Quantity(
         "limit_flags",
         "1",

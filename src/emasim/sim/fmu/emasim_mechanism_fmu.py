@@ -5,15 +5,15 @@ Main script of the FMU that :func:`emasim.sim.fmi.export_mechanism_fmu` builds. 
 and v = ``rod_velocity_m_s``; the 16 linkage states take n = round(dt / step_s) RK4 steps of
 :func:`emasim.sim.mechanism.advance`, which also gives ``rod_force_N``, the linkage's axial push
 on the rod. At initialisation the linkage takes its rigid pose
-(:func:`emasim.plant.linkage.rigid_pose`) at ``rod_position_m``. The packed linkage parameters
-come from the resource ``emasim_mechanism.json``. emasim must be importable in the Python that
-runs the FMU.
+(:func:`emasim.plant.elements.linkage.rigid_pose`) at ``rod_position_m``. The packed linkage
+parameters come from the resource ``emasim_mechanism.json``. emasim must be importable in the
+Python that runs the FMU.
 """
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Slave, Real
 
-from emasim.plant import linkage as L
+from emasim.plant.elements import linkage as L
 from emasim.sim.fmi import (
     DEFAULT_STEP_S,
     MECHANISM_INPUTS,

@@ -37,10 +37,10 @@ import math
 import numpy as np
 from pydantic import Field
 
-from ..config import MM, Strict, numbers
-from ..jit import njit
-from . import contact
-from .element import Derived, Element, Law, Quantity, State
+from ...config import MM, Strict, numbers
+from ...jit import njit
+from .. import contact
+from ..element import Derived, Element, Law, Quantity, State
 
 # --- state of the linkage (positions, then rates) ----------------------------------------
 PHI, XB, YB, TB, XC, YC, TC, TD = range(8)
@@ -507,6 +507,15 @@ def linkage_columns(y, s, s_dot, q):
     )
 
 
+def _pack(plant) -> dict[str, float]:
+    """The linkage's parameters, with the rudder inertia of the whole plant on the rocker arm
+    (PlantParams.rudder_inertia_kgm2: the load motor's rotor joins it without the rudder
+    shaft's torsion)."""
+    q = plant.linkage.pack()
+    q[J_D] = plant.rudder_inertia_kgm2
+    return dict(zip((f"linkage_{name}" for name, _ in _PARAMS), q, strict=True))
+
+
 LINKAGE = Element(
     "linkage",
     "planar bodies tied by four clearance-joint hinges (ADAMS model)",
@@ -557,4 +566,12 @@ LINKAGE = Element(
     ),
     values=tuple((q.name, q.name) for q in LINKAGE_COLUMNS),
     mechanism=True,
+    after="load_motor",
+    section="linkage",
+    config=LinkageParams,
+    pack=lambda plant: _pack(plant),
+    initial=lambda plant: dict(
+        zip(LINK_STATE_NAMES, rigid_pose(0.0, plant.linkage.pack()), strict=True)
+    ),
+    stage="linkage",
 )

@@ -16,8 +16,8 @@ step h the bristle equation is linear in z and has the exact solution used by
 
 import math
 
-from ..jit import njit
-from .element import (
+from ...jit import njit
+from ..element import (
     FAR_RUNAWAY,
     RK4_OSCILLATOR_LIMIT,
     Element,
@@ -129,6 +129,26 @@ def bristle_damping_for_ratio(zeta: float, sigma0: float, inertia: float, sigma2
     return sigma1
 
 
+FRICTION_MODELS = {"none": FRICTION_NONE, "coulomb": FRICTION_COULOMB, "lugre": FRICTION_LUGRE}
+
+
+def _pack(f, inertia: float) -> dict[str, float]:
+    """The friction's parameters from its section f (FrictionParams) and the inertia the
+    bristles carry (kg m^2): sigma1 from the damping ratio of the presliding mode."""
+    return {
+        "friction_model": FRICTION_MODELS[f.model],
+        "coulomb_Nm": f.coulomb_Nm,
+        "static_Nm": f.static_Nm,
+        "stribeck_speed_rad_s": f.stribeck_speed_rad_s,
+        "bristle_stiffness_Nm_per_rad": f.bristle_stiffness_Nm_per_rad,
+        "bristle_damping_Nms_per_rad": bristle_damping_for_ratio(
+            f.bristle_damping_ratio, f.bristle_stiffness_Nm_per_rad, inertia, f.viscous_Nms_per_rad
+        ),
+        "friction_viscous_Nms_per_rad": f.viscous_Nms_per_rad,
+        "smoothing_speed_rad_s": f.smoothing_speed_rad_s,
+    }
+
+
 FRICTION = Element(
     "friction",
     "friction on the motor shaft: LuGre, Coulomb + viscous, or none",
@@ -175,6 +195,9 @@ FRICTION = Element(
         ),
     ),
     forces=(("motor", "-torque"),),
+    after="motor",
+    section="friction",
+    pack=lambda plant: _pack(plant.friction, plant.motor.inertia_kgm2),
     rates=(("bristle_state_rad", "bristle_rate"),),
     values=(("friction_torque_Nm", "torque"),),
     modes=lambda value, mass: (

@@ -19,8 +19,16 @@ Play operator (position form), for a position read through a gap of half-width b
 (the paper's eq. 17, read cleanly; l is a gain, 1 by default).
 """
 
-from ..jit import njit
-from .element import RK4_OSCILLATOR_LIMIT, Coupling, Element, Quantity, two_body_rate
+from ...config import MM
+from ...jit import njit
+from ..element import (
+    RK4_OSCILLATOR_LIMIT,
+    Coupling,
+    Element,
+    Quantity,
+    damping_for_ratio,
+    two_body_rate,
+)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -51,6 +59,23 @@ def play_operator(x, y_prev, half_gap, gain):
     return y_prev
 
 
+def _pack(plant) -> dict[str, float]:
+    """The gap's parameters: its damping c = 2 zeta sqrt(K m_r) on the reduced mass m_r of the
+    motor seen at the nut (J / K^2) and the body beyond the gap (the compliance's node, else
+    the load)."""
+    b = plant.backlash
+    motor_mass = plant.motor.inertia_kgm2 / plant.ratio_m_per_rad**2  # kg, at the nut
+    beyond_gap = plant.load_mass_kg if plant.compliance is None else plant.compliance.node_mass_kg
+    reduced = motor_mass * beyond_gap / (motor_mass + beyond_gap)
+    return {
+        "backlash_half_gap_m": 0.5 * b.width_mm * MM,
+        "backlash_stiffness_N_per_m": b.stiffness_N_per_m,
+        "backlash_damping_Ns_per_m": damping_for_ratio(
+            b.damping_ratio, b.stiffness_N_per_m, reduced
+        ),
+    }
+
+
 BACKLASH = Element(
     "backlash",
     "dead-zone contact between the nut and the rod",
@@ -68,6 +93,9 @@ BACKLASH = Element(
             ("backlash_half_gap_m", "backlash_stiffness_N_per_m", "backlash_damping_Ns_per_m"),
         ),
     ),
+    after="transmission",
+    section="backlash",
+    pack=lambda plant: _pack(plant),
     modes=lambda value, mass: [
         (
             "the backlash contact stiffness",

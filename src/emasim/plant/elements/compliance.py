@@ -5,7 +5,7 @@ With the element, the gap sits between the screw (nut position K theta_m) and a 
 m_n (the nut body and what moves with it), and the spring k, with the damper c in parallel,
 ties the node to the rod:
 
-    F_gap      = dead_zone_force(K theta_m - x_n, K wm - v_n)     (N; emasim.plant.backlash)
+    F_gap      = dead_zone_force(K theta_m - x_n, K wm - v_n)     (N; elements.backlash)
     F_spring   = k (x_n - x_L) + c (v_n - v_L)                    (N; pulls as well as pushes)
     m_n dv_n/dt = F_gap - F_spring
 
@@ -20,9 +20,20 @@ spring deflects F/k.
 
 from pydantic import Field
 
-from ..config import Strict
-from .element import Quantity, State, rod_position_bound, rod_velocity_bound
-from .spring_damper import spring_damper
+from ...config import Strict
+from ..element import Quantity, State, rod_position_bound, rod_velocity_bound
+from ..spring_damper import spring_damper
+
+
+class ComplianceParams(Strict):
+    """The series spring-damper (module docstring), in SI units."""
+
+    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k: screw, nut and rod end")
+    damping_Ns_per_m: float = Field(ge=0, le=1e7, description="c, in parallel with k")
+    node_mass_kg: float = Field(
+        gt=0, le=100, description="m_n: the nut and what moves with it between gap and spring"
+    )
+
 
 COMPLIANCE = spring_damper(
     "compliance",
@@ -54,14 +65,13 @@ COMPLIANCE = spring_damper(
     output=Quantity("compliance_force_N", "N", "spring-damper force on the rod"),
     output_on_anchor=True,
     mode="the screw's compliance",
+    after="ratings",
+    section="compliance",
+    config=ComplianceParams,
+    pack=lambda c, plant: {
+        "compliance_stiffness_N_per_m": c.stiffness_N_per_m,
+        "compliance_damping_Ns_per_m": c.damping_Ns_per_m,
+        "compliance_node_mass_kg": c.node_mass_kg,
+    },
+    at_rod=lambda plant: plant.compliance.node_mass_kg,
 )
-
-
-class ComplianceParams(Strict):
-    """The series spring-damper (module docstring), in SI units."""
-
-    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k: screw, nut and rod end")
-    damping_Ns_per_m: float = Field(ge=0, le=1e7, description="c, in parallel with k")
-    node_mass_kg: float = Field(
-        gt=0, le=100, description="m_n: the nut and what moves with it between gap and spring"
-    )

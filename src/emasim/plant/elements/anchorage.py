@@ -17,9 +17,18 @@ with the series compliance between them, at the eigenfrequencies of the two-mass
 
 from pydantic import Field
 
-from ..config import Strict
-from .element import Quantity, State, rod_position_bound, rod_velocity_bound
-from .spring_damper import spring_damper
+from ...config import Strict
+from ..element import Quantity, State, rod_position_bound, rod_velocity_bound
+from ..spring_damper import spring_damper
+
+
+class AnchorageParams(Strict):
+    """The anchorage (module docstring), in SI units."""
+
+    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k_a: structure and mounts")
+    damping_Ns_per_m: float = Field(ge=0, le=1e9, description="c_a")
+    housing_mass_kg: float = Field(gt=0, le=1e4, description="m_h: body, stator, screw bearings")
+
 
 ANCHORAGE = spring_damper(
     "anchorage",
@@ -51,12 +60,12 @@ ANCHORAGE = spring_damper(
     output=Quantity("anchorage_force_N", "N", "force of the structure on the actuator body"),
     mode="the anchorage",
     order=("anchorage", "transmission", "end_stops"),  # m_h dv_h/dt = F_a - F_gap - F_stop
+    after="compliance",
+    section="anchorage",
+    config=AnchorageParams,
+    pack=lambda a, plant: {
+        "anchorage_stiffness_N_per_m": a.stiffness_N_per_m,
+        "anchorage_damping_Ns_per_m": a.damping_Ns_per_m,
+        "housing_mass_kg": a.housing_mass_kg,
+    },
 )
-
-
-class AnchorageParams(Strict):
-    """The anchorage (module docstring), in SI units."""
-
-    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k_a: structure and mounts")
-    damping_Ns_per_m: float = Field(ge=0, le=1e9, description="c_a")
-    housing_mass_kg: float = Field(gt=0, le=1e4, description="m_h: body, stator, screw bearings")

@@ -15,9 +15,28 @@ rod free on a lumped stage, at the two-mass frequency sqrt(k_t (1/J_d + 1/(M_L r
 
 from pydantic import Field
 
-from ..config import Strict
-from .element import FAR_RUNAWAY, Quantity, State
-from .spring_damper import spring_damper
+from ...config import Strict
+from ..element import FAR_RUNAWAY, Quantity, State
+from ..spring_damper import spring_damper
+
+
+def _disk_back_on_the_rudder(plant) -> dict:
+    """Without the shaft's torsion the disk turns with the rudder: on the linkage's rudder
+    inertia (the lumped stage's load section carries its rudder inertia whole)."""
+    if plant.linkage is None:
+        return {}
+    inertia = plant.linkage.rudder_inertia_kgm2 + plant.rudder_shaft.disk_inertia_kgm2
+    return {"linkage": plant.linkage.model_copy(update={"rudder_inertia_kgm2": inertia})}
+
+
+class ShaftParams(Strict):
+    """The rudder shaft's torsion (module docstring). The disk's inertia moves off the rudder:
+    the rudder inertia of the load or linkage section is then the rocker arm's side alone."""
+
+    stiffness_Nm_per_rad: float = Field(gt=0, le=1e12, description="k_t: shaft, torque sensor")
+    damping_Nms_per_rad: float = Field(ge=0, le=1e9, description="c_t")
+    disk_inertia_kgm2: float = Field(gt=0, le=1e4, description="J_d: the inertia disk")
+
 
 RUDDER_SHAFT = spring_damper(
     "rudder_shaft",
@@ -44,13 +63,18 @@ RUDDER_SHAFT = spring_damper(
     mode="the rudder shaft's torsion",
     rigid_anchor=True,  # the disk rings against the rudder side, far heavier at the arm
     mechanism=True,
+    after="anchorage",
+    section="rudder_shaft",
+    config=ShaftParams,
+    pack=lambda sh, plant: {
+        "shaft_stiffness_Nm_per_rad": sh.stiffness_Nm_per_rad,
+        "shaft_damping_Nms_per_rad": sh.damping_Nms_per_rad,
+        "disk_inertia_kgm2": sh.disk_inertia_kgm2 + plant.load_motor_inertia_kgm2,
+    },
+    # the disk's inertia, and the load motor's on it, seen at the rod through the lever
+    at_rod=lambda plant: (
+        (plant.rudder_shaft.disk_inertia_kgm2 + plant.load_motor_inertia_kgm2)
+        / plant.rod_per_rudder_m_per_rad**2
+    ),
+    removed=lambda plant: _disk_back_on_the_rudder(plant),
 )
-
-
-class ShaftParams(Strict):
-    """The rudder shaft's torsion (module docstring). The disk's inertia moves off the rudder:
-    the rudder inertia of the load or linkage section is then the rocker arm's side alone."""
-
-    stiffness_Nm_per_rad: float = Field(gt=0, le=1e12, description="k_t: shaft, torque sensor")
-    damping_Nms_per_rad: float = Field(ge=0, le=1e9, description="c_t")
-    disk_inertia_kgm2: float = Field(gt=0, le=1e4, description="J_d: the inertia disk")

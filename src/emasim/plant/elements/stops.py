@@ -1,6 +1,6 @@
 """End stops: the rod's at both ends of the stroke, and the rudder's travel limits.
 
-A stop is a stiff contact with damping, the dead-zone law of :mod:`emasim.plant.backlash`
+A stop is a stiff contact with damping, the dead-zone law of :mod:`emasim.plant.elements.backlash`
 with the stroke as its gap. With s the rod's extension relative to the actuator body (m,
 0 at mid stroke) and v its rate,
 
@@ -21,12 +21,32 @@ restitution of this contact law, computed independently by a tight solve_ivp of 
 on the same law.
 """
 
+import math
+
 from pydantic import Field
 
-from ..config import Strict
-from ..jit import njit
+from ...config import MM, Strict
+from ...jit import njit
+from ..element import RK4_OSCILLATOR_LIMIT, Coupling, Element, Quantity, two_body_rate
 from .backlash import dead_zone_force
-from .element import RK4_OSCILLATOR_LIMIT, Coupling, Element, Quantity, two_body_rate
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def stop_force(position, rate, limit, stiffness, damping):
+    """Force (or torque) of a pair of stops at +-limit on a body at ``position`` moving at
+    ``rate``: zero inside, pushing back beyond (module docstring)."""
+    return -dead_zone_force(position, rate, limit, stiffness, damping)
+
+
+class EndStopParams(Strict):
+    """The stops (module docstring). The rod's sit at the ends of the drive train's stroke."""
+
+    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k: the rod's stops")
+    damping_Ns_per_m: float = Field(ge=0, le=1e9, description="c: the rod's stops")
+    rudder_limit_deg: float = Field(gt=0, le=180, description="theta_max: the rudder's stops")
+    rudder_stiffness_Nm_per_rad: float = Field(gt=0, le=1e12, description="k_r")
+    rudder_damping_Nms_per_rad: float = Field(ge=0, le=1e9, description="c_r")
+
 
 END_STOPS = Element(
     "end_stops",
@@ -68,6 +88,17 @@ END_STOPS = Element(
         ),
     ),
     values=(("end_stop_force_N", "rod_force"), ("rudder_stop_torque_Nm", "rudder_torque")),
+    after="rod",
+    section="end_stops",
+    config=EndStopParams,
+    pack=lambda plant: {
+        "stroke_half_m": 0.5 * plant.drivetrain.stroke_mm * MM,
+        "stop_stiffness_N_per_m": plant.end_stops.stiffness_N_per_m,
+        "stop_damping_Ns_per_m": plant.end_stops.damping_Ns_per_m,
+        "rudder_limit_rad": math.radians(plant.end_stops.rudder_limit_deg),
+        "rudder_stop_stiffness_Nm_per_rad": plant.end_stops.rudder_stiffness_Nm_per_rad,
+        "rudder_stop_damping_Nms_per_rad": plant.end_stops.rudder_damping_Nms_per_rad,
+    },
     modes=lambda value, mass: [
         (
             "the rod's end stops",
@@ -76,20 +107,3 @@ END_STOPS = Element(
         )
     ],
 )
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def stop_force(position, rate, limit, stiffness, damping):
-    """Force (or torque) of a pair of stops at +-limit on a body at ``position`` moving at
-    ``rate``: zero inside, pushing back beyond (module docstring)."""
-    return -dead_zone_force(position, rate, limit, stiffness, damping)
-
-
-class EndStopParams(Strict):
-    """The stops (module docstring). The rod's sit at the ends of the drive train's stroke."""
-
-    stiffness_N_per_m: float = Field(gt=0, le=1e12, description="k: the rod's stops")
-    damping_Ns_per_m: float = Field(ge=0, le=1e9, description="c: the rod's stops")
-    rudder_limit_deg: float = Field(gt=0, le=180, description="theta_max: the rudder's stops")
-    rudder_stiffness_Nm_per_rad: float = Field(gt=0, le=1e12, description="k_r")
-    rudder_damping_Nms_per_rad: float = Field(ge=0, le=1e9, description="c_r")

@@ -13,8 +13,8 @@ when contact opens or closes.
 
 import math
 
-from ..jit import njit
-from .element import Derived, Element, Law, Quantity
+from ...jit import njit
+from ..element import Derived, Element, Law, Quantity
 
 
 def transmission_ratio(lead_m: float, gear_ratio: float) -> float:
@@ -76,4 +76,10 @@ TRANSMISSION = Element(
             onto=("housing|ground", "screw|motor"),
         ),
     ),
+    after="friction",
+    section="drivetrain",
+    pack=lambda plant: {
+        "ratio_m_per_rad": plant.ratio_m_per_rad,
+        "efficiency": plant.drivetrain.gear_efficiency * plant.drivetrain.screw_efficiency,
+    },
 )

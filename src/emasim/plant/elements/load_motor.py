@@ -20,10 +20,10 @@ import math
 
 from pydantic import Field, model_validator
 
-from ..config import Strict
-from ..jit import njit
-from ..numerics import clamp
-from .element import RATED_RUNAWAY, RK4_DECAY_LIMIT, Element, Law, Quantity, State
+from ...config import Strict
+from ...jit import njit
+from ...numerics import clamp
+from ..element import RATED_RUNAWAY, RK4_DECAY_LIMIT, Element, Law, Quantity, State
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -38,6 +38,34 @@ def load_motor_rate(torque, profile, angle, tau, spring, preload, max_torque):
     """dT_lm/dt (N m/s) for the profile torque T(t) and the angle theta (module docstring)."""
     command = clamp(profile + preload + spring * angle, -max_torque, max_torque)
     return (command - torque) / tau
+
+
+class LoadMotorParams(Strict):
+    """The load motor (module docstring)."""
+
+    inertia_kgm2: float = Field(ge=0, le=1e3, description="rotor inertia on the rudder shaft")
+    bandwidth_Hz: float = Field(gt=0, le=1e4, description="f_b of its torque loop")
+    max_torque_Nm: float = Field(gt=0, le=1e6, description="T_max: its torque rating")
+    spring_Nm_per_deg: float = Field(
+        default=0.0, ge=-1e6, le=1e6, description="k_aero: hinge moment per degree of rudder"
+    )
+    preload_Nm: float = Field(
+        default=0.0, ge=-1e6, le=1e6, description="T_pre: standing torque from t = 0"
+    )
+
+    @model_validator(mode="after")
+    def _preload_within_rating(self):
+        if abs(self.preload_Nm) > self.max_torque_Nm:
+            raise ValueError(
+                f"preload_Nm ({self.preload_Nm:g}) must be within the load motor's rating, "
+                f"+-max_torque_Nm = +-{self.max_torque_Nm:g} N m"
+            )
+        return self
+
+    @property
+    def time_constant_s(self) -> float:
+        """tau = 1 / (2 pi f_b)."""
+        return 1.0 / (2.0 * math.pi * self.bandwidth_Hz)
 
 
 LOAD_MOTOR = Element(
@@ -89,32 +117,15 @@ LOAD_MOTOR = Element(
         ("the load motor's torque loop", 1.0 / value("load_motor_time_constant_s"), RK4_DECAY_LIMIT)
     ],
     mechanism=True,
+    after="rudder_shaft",
+    section="load_motor",
+    config=LoadMotorParams,
+    pack=lambda plant: {
+        "load_motor_time_constant_s": plant.load_motor.time_constant_s,
+        "load_motor_spring_Nm_per_rad": math.degrees(plant.load_motor.spring_Nm_per_deg),
+        "load_motor_preload_Nm": plant.load_motor.preload_Nm,
+        "load_motor_max_torque_Nm": plant.load_motor.max_torque_Nm,
+    },
+    initial=lambda plant: {"load_motor_torque_Nm": plant.load_motor.preload_Nm},  # from t = 0
+    stage="load motor",
 )
-
-
-class LoadMotorParams(Strict):
-    """The load motor (module docstring)."""
-
-    inertia_kgm2: float = Field(ge=0, le=1e3, description="rotor inertia on the rudder shaft")
-    bandwidth_Hz: float = Field(gt=0, le=1e4, description="f_b of its torque loop")
-    max_torque_Nm: float = Field(gt=0, le=1e6, description="T_max: its torque rating")
-    spring_Nm_per_deg: float = Field(
-        default=0.0, ge=-1e6, le=1e6, description="k_aero: hinge moment per degree of rudder"
-    )
-    preload_Nm: float = Field(
-        default=0.0, ge=-1e6, le=1e6, description="T_pre: standing torque from t = 0"
-    )
-
-    @model_validator(mode="after")
-    def _preload_within_rating(self):
-        if abs(self.preload_Nm) > self.max_torque_Nm:
-            raise ValueError(
-                f"preload_Nm ({self.preload_Nm:g}) must be within the load motor's rating, "
-                f"+-max_torque_Nm = +-{self.max_torque_Nm:g} N m"
-            )
-        return self
-
-    @property
-    def time_constant_s(self) -> float:
-        """tau = 1 / (2 pi f_b)."""
-        return 1.0 / (2.0 * math.pi * self.bandwidth_Hz)

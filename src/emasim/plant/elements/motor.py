@@ -18,10 +18,10 @@ inverter's diodes, as it would on the drive (emasim.analysis.report.limits_cross
 
 import math
 
-from ..config import MM, RPM
-from ..jit import njit
-from ..numerics import limit_magnitude
-from .element import (
+from ...config import MM, RPM
+from ...jit import njit
+from ...numerics import limit_magnitude
+from ..element import (
     FAR_RUNAWAY,
     RATED_RUNAWAY,
     RK4_DECAY_LIMIT,
@@ -169,6 +169,19 @@ MOTOR = Element(
         Law(viscous_force, ("p.motor_viscous_Nms_per_rad", "motor.v"), ("viscous",)),
     ),
     forces=(("motor", "+torque"), ("motor", "-viscous"), ("motor", "-in.t_load")),
+    section="motor",
+    pack=lambda plant: {
+        "stator_resistance_ohm": plant.motor.resistance_ohm,
+        "inductance_d_H": plant.motor.inductance_d_H,
+        "inductance_q_H": plant.motor.inductance_q_H,
+        "flux_linkage_Wb": plant.motor.flux_linkage_Wb,
+        "pole_pairs": plant.motor.pole_pairs,
+        "rotor_inertia_kgm2": plant.motor.inertia_kgm2,
+        "motor_viscous_Nms_per_rad": plant.motor.viscous_Nms_per_rad,
+        "dc_bus_V": plant.motor.dc_bus_V,
+        "max_current_A": plant.motor.max_current_A,
+        "max_speed_rad_s": plant.motor.max_speed_rpm * RPM,
+    },
     rates=(("id_A", "did"), ("iq_A", "diq")),
     values=(("torque_Nm", "torque"),),
     modes=lambda value, mass: [

@@ -21,25 +21,13 @@ drive holds only max_current_A, max_speed_rpm on the speed command, and the inve
 
 from pydantic import Field
 
-from ..config import Strict
-from ..jit import njit
-from ..numerics import clamp
-from .element import Element, Quantity
+from ...config import RPM, Strict
+from ...jit import njit
+from ...numerics import clamp
+from ..element import Element, Quantity
 
 SPEED_FOLDBACK = 0.05  # the current folds back over the last 5 % below the rated speed
 RECOVERY = 0.1  # the peak current returns once the heat is 10 % below its capacity
-
-RATINGS = Element(
-    "ratings",
-    "the drive's rated speed and its peak and continuous current (I^2 t)",
-    params=(
-        Quantity("ratings_present", "1", "1 with the element, 0 without"),
-        Quantity("rated_speed_rad_s", "rad/s", "w_r"),
-        Quantity("continuous_current_A", "A", "I_cont"),
-        Quantity("heat_capacity_A2s", "A^2 s", "E_max = (I_peak^2 - I_cont^2) t_peak"),
-    ),
-    presence="ratings_present",
-)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -75,3 +63,26 @@ class RatingsParams(Strict):
     peak_current_s: float = Field(
         gt=0, le=3600, description="t_peak: how long the peak current may flow from cold"
     )
+
+
+RATINGS = Element(
+    "ratings",
+    "the drive's rated speed and its peak and continuous current (I^2 t)",
+    params=(
+        Quantity("ratings_present", "1", "1 with the element, 0 without"),
+        Quantity("rated_speed_rad_s", "rad/s", "w_r"),
+        Quantity("continuous_current_A", "A", "I_cont"),
+        Quantity("heat_capacity_A2s", "A^2 s", "E_max = (I_peak^2 - I_cont^2) t_peak"),
+    ),
+    presence="ratings_present",
+    after="end_stops",
+    section="ratings",
+    config=RatingsParams,
+    pack=lambda plant: {
+        "rated_speed_rad_s": plant.ratings.rated_speed_rpm * RPM,
+        "continuous_current_A": plant.ratings.continuous_current_A,
+        "heat_capacity_A2s": (plant.motor.max_current_A**2 - plant.ratings.continuous_current_A**2)
+        * plant.ratings.peak_current_s,
+    },
+    stage="digital drive",
+)
