@@ -52,7 +52,9 @@ Not modelled: friction, the backlash's width, end stops, current, speed and volt
 anti-windup, the drive's ratings (none acts on a small signal), sensor imperfections (the
 sensors are taken as ideal, sampled at every tick). Refused with InputError: controllers
 without a linear form (anything but position 'pid'/'pi', speed 'pi'), the clearance-joint
-linkage (with any feedback, 'rudder' included) and the load motor. On the lumped stage the
+linkage (with any feedback, 'rudder' included), the load motor, and any element this module
+does not write out (:data:`WRITTEN_OUT`: an element added since, such as the gear mesh, is
+refused, never left out in silence). On the lumped stage the
 'rudder' feedback reads x_L, the 'rod' feedback the rod's extension x_L - x_h and the 'motor'
 feedback K theta_m.
 """
@@ -133,6 +135,23 @@ def linearize(scenario: Scenario, *, operating_speed_rpm: float = 0.0) -> contro
     )
 
 
+# the elements whose small-signal terms _plant writes out, or that act on no small signal
+WRITTEN_OUT = frozenset(
+    {
+        "motor",
+        "friction",
+        "transmission",
+        "backlash",
+        "rod",
+        "end_stops",
+        "ratings",
+        "compliance",
+        "anchorage",
+        "rudder_shaft",
+    }
+)
+
+
 def _refuse_nonlinear(scenario: Scenario) -> None:
     """InputError, one line, for a controller or a plant element without a linear form."""
     c, plant = scenario.controllers, scenario.plant
@@ -155,6 +174,11 @@ def _refuse_nonlinear(scenario: Scenario) -> None:
         )
     if plant.load_motor is not None:
         raise InputError("linearize: plant.load_motor has no linear form; remove it")
+    unknown = sorted(set(A.PLANT.present_elements(plant.pack())) - WRITTEN_OUT)
+    if unknown:
+        raise InputError(
+            f"linearize: plant.{unknown[0]} is not written out in emasim.linear yet; remove it"
+        )
 
 
 def _plant(p: np.ndarray, w0: float, iq0: float, feedback: str | None) -> control.StateSpace:

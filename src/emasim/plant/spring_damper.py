@@ -1,6 +1,6 @@
 """A spring-damper between two ports, and the body it carries: one element type for every
 series elasticity of the plant (the anchorage, the screw's compliance, the rudder shaft's
-torsion).
+torsion, the gear mesh).
 
 The element's body (mass or inertia m, position x_b) sits at the node it provides; the spring k
 and the damper c in parallel tie it to the ``anchor`` port (at x_a):
@@ -8,6 +8,9 @@ and the damper c in parallel tie it to the ``anchor`` port (at x_a):
     F = k (x_a - x_b) + c (v_a - v_b)          (N, or N m for a torsion; on the body, -F on
                                                the anchor)
     m dv_b/dt = F + (every other force on the body's node)
+
+or, with a play of 2b, a law with a dead zone in place of the spring-damper (the gear mesh's:
+emasim.plant.elements.gear_mesh).
 
 The elements that coupled to the node before the element was added now couple to its body:
 without the element (its presence parameter 0) the node is the anchor, its states stay idle
@@ -44,6 +47,8 @@ def spring_damper(
     at_motor: Callable | None = None,
     at_rod: Callable | None = None,
     stage: str = "compliance",
+    play: Quantity | None = None,
+    law: Callable = spring_damper_force,
     **extra,
 ) -> Element:
     """A spring-damper element (module docstring). ``states`` are the body's (position,
@@ -53,10 +58,13 @@ def spring_damper(
     (emasim.plant.element.Body). ``pack(section, plant)`` gives its parameters from its
     section; ``at_motor(plant)`` and ``at_rod(plant)`` the inertia (kg m^2) and mass (kg) its
     body adds at the motor shaft or at the rod. Its ablation ``stage`` is the compliance's.
-    ``extra`` passes the rest to the Element (its place and section, laws, values, outputs).
+    With ``play`` (a parameter: half the play, b) the force is ``law(dx, dv, b, k, c)``, a
+    law with a dead zone. ``extra`` passes the rest to the Element (its place and section,
+    laws, values, outputs).
     """
     presence, stiffness, damping, mass = (q.name for q in params)
     position, velocity = (s.name for s in states)
+    gap = () if play is None else (play.name,)
 
     def modes(value, mass_at):
         m_anchor = math.inf if rigid_anchor else mass_at(anchor)
@@ -67,11 +75,11 @@ def spring_damper(
         name,
         description,
         states=states,
-        params=params,
+        params=params if play is None else (*params, play),
         outputs=(output, *extra.pop("outputs", ())),
         presence=presence,
         bodies=(Body(node, position, velocity, mass, alias=anchor, order=order),),
-        couplings=(Coupling(spring_damper_force, anchor, node, (stiffness, damping)),),
+        couplings=(Coupling(law, anchor, node, (*gap, stiffness, damping)),),
         values=((output.name, "-force" if output_on_anchor else "force"), *extra.pop("values", ())),
         modes=modes,
         pack=lambda plant: pack(getattr(plant, extra["section"]), plant),
