@@ -12,6 +12,7 @@ from .element import damping_for_ratio
 from .elements.anchorage import AnchorageParams
 from .elements.compliance import ComplianceParams
 from .elements.drivetrain import transmission_ratio
+from .elements.gear_mesh import GearMeshParams
 from .elements.linkage import LinkageParams
 from .elements.load_motor import LoadMotorParams
 from .elements.ratings import RatingsParams
@@ -263,8 +264,44 @@ def sea805_bench(clearance_mm: float = 0.01) -> PlantParams:
     )
 
 
+STEEL_DENSITY_KG_M3 = 7850.0  # structural steel (EN 10025)
+SCREW_SHAFT_DIAMETER_M = 0.030  # ours: the roller screw's shaft, for an 8 mm lead, 250 mm stroke
+SCREW_SHAFT_LENGTH_M = 0.5  # ours: the stroke, the nut and the two bearing seats
+
+
+def sea805_coupling() -> PlantParams:
+    """sea805 with the torsion between the motor and the screw (emasim.plant.elements.gear_mesh):
+    the SEA805 drives its screw directly (paper section 3), through a shaft coupling.
+
+    Every number is ours (the paper gives the rotor and screw's inertia together):
+
+    * the screw side: a solid steel shaft of 30 mm by 0.5 m, J_s = pi rho L d^4 / 32; the rotor
+      keeps the rest of the paper's 0.0027 kg m^2;
+    * the coupling: 5e4 N m/rad, within the 1e4 to 1e5 N m/rad that metal-bellows couplings of
+      a few tens of N m (the motor's peak is 1.5 np psi_f 58 A = 42 N m) list in catalogues,
+      with no play; 2 % of critical damping on the two inertias' reduced inertia.
+    """
+    base = sea805()
+    screw = math.pi * STEEL_DENSITY_KG_M3 * SCREW_SHAFT_LENGTH_M * SCREW_SHAFT_DIAMETER_M**4 / 32
+    rotor = base.motor.inertia_kgm2 - screw
+    stiffness = 5.0e4
+    return base.model_copy(
+        update={
+            "motor": base.motor.model_copy(update={"inertia_kgm2": rotor}),
+            "gear_mesh": GearMeshParams(
+                stiffness_Nm_per_rad=stiffness,
+                damping_Nms_per_rad=damping_for_ratio(
+                    0.02, stiffness, rotor * screw / (rotor + screw)
+                ),
+                screw_inertia_kgm2=screw,
+            ),
+        }
+    )
+
+
 PRESETS = {
     "sea805": sea805,
+    "sea805-coupling": sea805_coupling,
     "sea805-stand": sea805_stand,
     "sea805-linkage": sea805_linkage,
     "sea805-bench": sea805_bench,
