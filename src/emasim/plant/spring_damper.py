@@ -1,6 +1,6 @@
 """A spring-damper between two ports, and the body it carries: one element type for every
 series elasticity of the plant (the anchorage, the screw's compliance, the rudder shaft's
-torsion, the gear mesh).
+torsion, the torsion between the motor and the screw).
 
 The element's body (mass or inertia m, position x_b) sits at the node it provides; the spring k
 and the damper c in parallel tie it to the ``anchor`` port (at x_a):
@@ -9,8 +9,7 @@ and the damper c in parallel tie it to the ``anchor`` port (at x_a):
                                                the anchor)
     m dv_b/dt = F + (every other force on the body's node)
 
-or, with a play of 2b, a law with a dead zone in place of the spring-damper (the gear mesh's:
-emasim.plant.elements.gear_mesh).
+or, with a play of 2b, a law with a dead zone in place of the spring-damper.
 
 The elements that coupled to the node before the element was added now couple to its body:
 without the element (its presence parameter 0) the node is the anchor, its states stay idle
