@@ -24,11 +24,12 @@ import math
 
 from pydantic import Field
 
-from ...config import MM, RPM, Strict
+from ...config import Strict
 from ...jit import njit
-from ..element import FAR_RUNAWAY, RATED_RUNAWAY, Quantity, State
+from ..element import Quantity, State
 from ..spring_damper import spring_damper, spring_damper_force
 from .backlash import dead_zone_force
+from .motor import shaft_angle_bound, shaft_speed_bound
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -62,16 +63,14 @@ GEAR_MESH = spring_damper(
             "rad",
             "angle of the screw side, seen at the motor shaft",
             atol=1e-11,
-            bound=lambda plant: (
-                FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM / plant.ratio_m_per_rad
-            ),
+            bound=shaft_angle_bound,
         ),
         State(
             "screw_speed_rad_s",
             "rad/s",
             "speed of the screw side, seen at the motor shaft",
             atol=1e-9,
-            bound=lambda plant: RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM,
+            bound=shaft_speed_bound,
         ),
     ),
     params=(

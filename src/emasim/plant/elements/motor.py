@@ -96,6 +96,17 @@ def _current_bound(plant) -> float:
     return RATED_RUNAWAY * plant.motor.max_current_A
 
 
+def shaft_angle_bound(plant) -> float:
+    """A shaft angle seen at the motor (rad) this far out is a runaway: FAR_RUNAWAY strokes."""
+    return FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM / plant.ratio_m_per_rad
+
+
+def shaft_speed_bound(plant) -> float:
+    """A shaft speed seen at the motor (rad/s) this fast is a runaway: RATED_RUNAWAY times the
+    speed limit."""
+    return RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM
+
+
 _STATOR = (  # the stator's parameters, in the order stator_rates takes them
     "p.stator_resistance_ohm",
     "p.inductance_d_H",
@@ -116,16 +127,14 @@ MOTOR = Element(
             "rad",
             "motor shaft angle",
             atol=1e-11,
-            bound=lambda plant: (
-                FAR_RUNAWAY * plant.drivetrain.stroke_mm * MM / plant.ratio_m_per_rad
-            ),
+            bound=shaft_angle_bound,
         ),
         State(
             "motor_speed_rad_s",
             "rad/s",
             "motor mechanical speed",
             atol=1e-9,
-            bound=lambda plant: RATED_RUNAWAY * plant.motor.max_speed_rpm * RPM,
+            bound=shaft_speed_bound,
         ),
     ),
     params=(
