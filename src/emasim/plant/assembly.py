@@ -28,7 +28,7 @@ import os
 import re
 import sys
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..numba_cache import configured_folder
@@ -52,6 +52,7 @@ class _Statement:
     guard: str | None = None
     absent: list[str] = field(default_factory=list)
     sink: bool = False
+    kind: str = ""  # "derived" or "alias": a node's motion (see _lazy)
 
     @property
     def needs(self) -> set[str]:
@@ -94,8 +95,12 @@ class _Plant:
             if token[3:] not in INPUTS:
                 raise ValueError(f"{element.name}: no input '{token}'")
             return token[3:]
-        if token == "hinges":
+        if token in ("hinges", "x", "dx", "p"):
             return token
+        if token.startswith(("x0[", "p0[")):  # where an element's states or parameters start
+            name = token[3:-1]
+            offsets = layout.state_offset if token[0] == "x" else layout.param_offset
+            return str(offsets[name])
         if token.startswith(("x.", "p.")):
             vector = layout.states if token[0] == "x" else layout.params
             return f"{token[0]}[{vector.index(token[2:])}]"
@@ -149,11 +154,12 @@ def _motions(g: _Plant, order: list[str]) -> list[_Statement]:
             ]
             alias = g.port(body.alias) if body.alias else None
             merged = [f"x_{node} = x_{alias}", f"v_{node} = v_{alias}"] if alias else []
-            out.append(_Statement(own, provides, g.present(element), merged))
+            kind = "alias" if alias else ""
+            out.append(_Statement(own, provides, g.present(element), merged, kind=kind))
         elif node in g.derived:
             element, derived = g.derived[node]
             line = g.call(derived.motion, element, (f"x_{node}", f"v_{node}"))
-            out.append(_Statement([line], provides))
+            out.append(_Statement([line], provides, kind="derived"))
     return out
 
 
@@ -258,9 +264,8 @@ def _resolve(g: _Plant, order: list[str], rates: bool) -> tuple[list[_Statement]
         if node in g.derived:
             element, derived = g.derived[node]
             results = g.own(element, derived.fold.results)
-            out.append(
-                _Statement([g.call(derived.fold, element, results)], set(results), sink=rates)
-            )
+            call = g.call(derived.fold, element, results)
+            out.append(_Statement([call], set(results), sink=rates))
             for target, result in zip(derived.onto, results, strict=True):
                 if target.endswith(".a"):
                     accelerations[g.port(target[:-2])].append(f" + {result}")
@@ -310,6 +315,41 @@ def _ordered(terms: list[str], order: tuple[str, ...]) -> list[str]:
         return len(order)
 
     return sorted(terms, key=rank)
+
+
+def _lazy(statements: list[_Statement]) -> list[_Statement]:
+    """The statements, a derived node's motion computed only where a present element uses it
+    (the rocker arm's angle of a plant without rudder stops, shaft or load motor is never
+    needed): when every statement that reads the motion runs under a presence condition
+    (through the nodes that merge into it while absent), the motion runs under their union."""
+
+    def conditions(names: set[str], after: int) -> set[str] | None:
+        found = set()
+        for statement in statements[after + 1 :]:
+            if not statement.needs & names:
+                continue
+            if (
+                statement.kind == "alias"
+                and not set(IDENTIFIER.findall("\n".join(statement.lines))) & names
+            ):  # only while its body is absent does the node take this motion
+                deeper = conditions(statement.provides, statements.index(statement))
+                if deeper is None:
+                    return None
+                found |= deeper
+            elif statement.guard is None:
+                return None
+            else:
+                found.add(statement.guard)
+        return found
+
+    out = []
+    for i, statement in enumerate(statements):
+        guards = conditions(statement.provides, i) if statement.kind == "derived" else None
+        if guards:
+            absent = [f"{name} = 0.0" for name in sorted(statement.provides)]
+            statement = replace(statement, guard=" or ".join(sorted(guards)), absent=absent)
+        out.append(statement)
+    return out
 
 
 def _prune(statements: list[_Statement]) -> list[_Statement]:
@@ -402,7 +442,7 @@ def generate(plant: PlantLayout, hold: tuple[str, float] | None = None) -> str:
     order = _node_order(g)
     motions = _motions(g, order)
     resolved, exchange = _resolve(g, order, rates=True)
-    rhs = _prune([*motions, *_laws(g, "rates", False), *resolved, *_held(g)])
+    rhs = _lazy(_prune([*motions, *_laws(g, "rates", False), *resolved, *_held(g)]))
     outputs = [
         *motions,
         *_laws(g, "values", False),

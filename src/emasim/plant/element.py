@@ -97,7 +97,10 @@ class Law:
     An argument is bound by a token: ``x.<state>``, ``p.<param>``, ``in.<input>`` (u_d, u_q,
     t_load, f_load, t_rudder), ``<node>.x``/``.v`` (a node's motion), ``<node>.fold`` (the
     force an absent body passes to the node it merges into, 0 while present), ``x[<element>]``,
-    ``dx[<element>]`` or ``p[<element>]`` (an element's slice), ``hinges``, a number, or the
+    ``dx[<element>]`` or ``p[<element>]`` (an element's slice: a view made at every call, so
+    for outputs only), ``x``, ``dx``, ``p`` and ``x0[<element>]``, ``p0[<element>]`` (the whole
+    vectors and where an element starts in them: what the right-hand side passes, slicing
+    only where it must), ``hinges``, a number, or the
     name of a result of an earlier law of the same element. A port written ``a|b`` is node a
     where some element provides it, else b.
     """
@@ -145,8 +148,8 @@ class Derived:
     """A node whose motion follows other nodes: ``motion`` returns (x, v); the force on the
     node, bound as ``<node>.f``, is passed on by ``fold``, whose results push the nodes of
     ``onto`` in order (``<node>.a``: an acceleration of the node, added after the division by
-    its mass). ``exchange`` names the fold result the right-hand side returns (the
-    force a co-simulation exchanges), if any."""
+    its mass). ``exchange`` names the fold result the
+    right-hand side returns (the force a co-simulation exchanges), if any."""
 
     node: str
     motion: Law

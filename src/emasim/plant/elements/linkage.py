@@ -472,18 +472,22 @@ def rocker_motion(load_model, s, s_dot, arm, angle, rate):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def rocker_reaction(torque, load_model, s, s_dot, arm, y, q, dy, hinges):
+def rocker_reaction(torque, load_model, s, s_dot, arm, x, p, dx, x0, p0, hinges):
     """What the torque on the rocker arm (N m, driving positive deflection) does to the rod:
     (the linkage's axial push in N, the lumped stage's push in N, an acceleration in m/s^2).
-    Lumped stage: torque / arm. Linkage: its right-hand side (written into dy, the hinges into
-    ``hinges``), its axial push, and the centripetal r phi'^2 of the swinging rod
-    (r = L0 + s). Held: nothing (a co-simulation solves the rudder side). The two pushes are
-    kept apart because the rod's equation sums them at different places (emasim.plant.rod)."""
+    Lumped stage: torque / arm. Linkage: its right-hand side (its states y = x[x0:], its
+    parameters q = p[p0:], its rates written into dx[x0:], the hinges into ``hinges``), its
+    axial push, and the centripetal r phi'^2 of the swinging rod (r = L0 + s). Held: nothing
+    (a co-simulation solves the rudder side). The two pushes are kept apart because the rod's
+    equation sums them at different places (emasim.plant.elements.rod). The slices are made
+    here, with the linkage alone: views passed at every call of the right-hand side made the
+    loop of a plant without the linkage 1.8 times slower (benchmarks/bench_paired.py)."""
     if load_model == LOAD_LUMPED:
         return 0.0, torque / arm, 0.0
     if load_model == LOAD_HELD:
         return 0.0, 0.0, 0.0
-    axial = linkage_rhs(y, s, s_dot, torque, q, dy, hinges)
+    y, q = x[x0 : x0 + N_LINK], p[p0 : p0 + N_LINK_PARAMS]
+    axial = linkage_rhs(y, s, s_dot, torque, q, dx[x0 : x0 + N_LINK], hinges)
     swing = y[N_POS + PHI]
     return axial, 0.0, (q[L0] + s) * swing * swing
 
@@ -546,9 +550,11 @@ LINKAGE = Element(
                     "rod.x",
                     "rod.v",
                     "p.rudder_arm_m",
-                    "x[linkage]",
-                    "p[linkage]",
-                    "dx[linkage]",
+                    "x",
+                    "p",
+                    "dx",
+                    "x0[linkage]",
+                    "p0[linkage]",
                     "hinges",
                 ),
                 ("axial", "lever", "swing"),
