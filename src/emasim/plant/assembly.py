@@ -3,7 +3,7 @@
 Every element declares its behaviour (emasim.plant.element): the bodies it owns, the nodes
 that follow others, its couplings and laws, the forces they put on nodes, the rates of its
 states and the values of its outputs. :func:`generate` writes, from those declarations alone,
-the source of a module with three compiled functions:
+the source of a module of compiled functions:
 
 * ``rhs(x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges)``: every node's motion (in
   dependency order: a body's states, or the node an absent body merges into, or a derived
@@ -13,7 +13,10 @@ the source of a module with three compiled functions:
   force to its alias, a derived node folds its force onto the nodes it follows. With the
   plant's ``hold`` parameter at its held value the mechanism elements' rates are 0 (a
   co-simulation integrates them apart). It returns the derived node's ``exchange`` result.
-* ``plant_outputs(x, p, out)``: every element output, NaN for an absent element's.
+  A derived node's motion runs only where a present element reads it (:func:`_lazy`).
+* ``plant_outputs(x, p, out)``: every element output, NaN for an absent element's, and
+  ``output_<name>(x, p)`` for each alone (what the sensors read), each computing only what
+  its output needs (:func:`_prune`).
 * ``active_states(p)``: the states that move, up to the end of the last present element.
 
 Every index is a literal in the generated source: nothing is kept by hand. The source is

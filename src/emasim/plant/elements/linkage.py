@@ -480,8 +480,8 @@ def rocker_reaction(torque, load_model, s, s_dot, arm, x, p, dx, x0, p0, hinges)
     axial push, and the centripetal r phi'^2 of the swinging rod (r = L0 + s). Held: nothing
     (a co-simulation solves the rudder side). The two pushes are kept apart because the rod's
     equation sums them at different places (emasim.plant.elements.rod). The slices are made
-    here, with the linkage alone: views passed at every call of the right-hand side made the
-    loop of a plant without the linkage 1.8 times slower (benchmarks/bench_paired.py)."""
+    here, with the linkage alone: views made at every call of the right-hand side slowed the
+    loop of every plant without the linkage (benchmarks/bench_paired.py)."""
     if load_model == LOAD_LUMPED:
         return 0.0, torque / arm, 0.0
     if load_model == LOAD_HELD:
