@@ -35,10 +35,9 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..numba_cache import configured_folder
-from .element import Coupling, Law, PlantLayout
+from .element import GROUND, Coupling, Law, PlantLayout
 
 INPUTS = ("u_d", "u_q", "t_load", "f_load", "t_rudder")
-GROUND = "ground"
 INDENT = "    "
 
 
@@ -68,16 +67,12 @@ class _Plant:
 
     def __init__(self, plant: PlantLayout, hold: tuple[str, float] | None):
         self.plant, self.hold = plant, hold
-        self.bodies = {b.node: (e, b) for e in plant.elements for b in e.bodies}
-        self.derived = {d.node: (e, d) for e in plant.elements for d in e.derived}
+        self.bodies, self.derived, self.port = plant.bodies, plant.derived, plant.port
         self.functions: dict[object, str] = {}
 
-    def port(self, name: str) -> str:
-        """The node a port names: the first of ``a|b`` that some element provides."""
-        for candidate in name.split("|"):
-            if candidate == GROUND or candidate in self.bodies or candidate in self.derived:
-                return candidate
-        raise ValueError(f"no element provides a node for the port '{name}'")
+    def name_of(self, function) -> str:
+        """The generated module's name for a compiled function (imported once)."""
+        return self.functions.setdefault(function, f"_f{len(self.functions)}")
 
     def present(self, element) -> str | None:
         """The condition that the element is present, None for one always there."""
@@ -124,7 +119,7 @@ class _Plant:
 
     def call(self, law: Law, element, results: tuple[str, ...]) -> str:
         """``results = function(arguments)``, the function imported once."""
-        function = self.functions.setdefault(law.function, f"_f{len(self.functions)}")
+        function = self.name_of(law.function)
         args = ", ".join(self.bind(a, element) for a in law.args)
         return f"{', '.join(results)} = {function}({args})"
 
@@ -170,7 +165,7 @@ def _coupling(g: _Plant, c: Coupling, element) -> str:
     a, b = g.port(c.a), g.port(c.b)
     dx = f"x_{a} - x_{b}" if a != GROUND else f"-x_{b}"
     dv = f"v_{a} - v_{b}" if a != GROUND else f"-v_{b}"
-    function = g.functions.setdefault(c.law, f"_f{len(g.functions)}")
+    function = g.name_of(c.law)
     params = "".join(f", {g.bind('p.' + q, element)}" for q in c.params)
     return f"{element.name}__{c.result} = {function}({dx}, {dv}{params})"
 
@@ -499,9 +494,12 @@ def load(plant: PlantLayout, hold: tuple[str, float] | None = None):
     path = _folder() / f"plant_{digest}.py"
     if not path.exists() or path.read_text() != source:
         fd, temporary = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as handle:
-            handle.write(source)
-        os.replace(temporary, path)  # one writer's identical text replaces another's
+        try:
+            with os.fdopen(fd, "w") as handle:
+                handle.write(source)
+            os.replace(temporary, path)  # one writer's identical text replaces another's
+        finally:
+            Path(temporary).unlink(missing_ok=True)  # ours, left only if the write failed
     name = f"emasim_generated_plant_{digest}"
     if name in sys.modules:
         return sys.modules[name]

@@ -19,6 +19,7 @@ the plant's element order. Index constants (``X_IQ``, ``P_KB``) are then looked 
 module-level constants.
 """
 
+import functools
 import heapq
 import math
 from collections.abc import Callable, Sequence
@@ -68,6 +69,7 @@ def two_body_rate(stiffness: float, m1: float, m2: float = math.inf) -> float:
     return math.sqrt(stiffness * (1.0 / m1 + 1.0 / m2))
 
 
+GROUND = "ground"  # the node that never moves
 RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # RK4 is stable for omega h below this (imaginary axis)
 RK4_DECAY_LIMIT = 2.78  # and for lambda h below this (negative real axis)
 
@@ -271,17 +273,33 @@ class PlantLayout:
         """A reader of the packed ``params`` by parameter name."""
         return lambda name: float(params[self.params.index(name)])
 
+    @functools.cached_property
+    def bodies(self) -> dict[str, tuple[Element, Body]]:
+        """node -> (the element, its Body) of every body of the plant."""
+        return {b.node: (e, b) for e in self.elements for b in e.bodies}
+
+    @functools.cached_property
+    def derived(self) -> dict[str, tuple[Element, Derived]]:
+        """node -> (the element, its Derived) of every derived node of the plant."""
+        return {d.node: (e, d) for e in self.elements for d in e.derived}
+
+    def port(self, name: str) -> str:
+        """The node a port names: the first of ``a|b`` that some element provides (or the
+        ground)."""
+        for candidate in name.split("|"):
+            if candidate == GROUND or candidate in self.bodies or candidate in self.derived:
+                return candidate
+        raise ValueError(f"no element provides a node for the port '{name}'")
+
     def mass_at(self, params: np.ndarray, port: str) -> float:
-        """The mass (kg or kg m^2) of the body at ``port`` (``a|b``: the first node some
-        element provides): its own while its element is present, else its alias's; infinite
-        for the ground."""
-        bodies = {b.node: (e, b) for e in self.elements for b in e.bodies}
-        node = next((n for n in port.split("|") if n in bodies or n == "ground"), None)
-        if node is None:
-            raise ValueError(f"no body at the port '{port}'")
-        if node == "ground":
+        """The mass (kg or kg m^2) of the body at ``port``: its own while its element is
+        present, else its alias's; infinite for the ground."""
+        node = self.port(port)
+        if node == GROUND:
             return math.inf
-        element, body = bodies[node]
+        if node not in self.bodies:
+            raise ValueError(f"no body at the port '{port}'")
+        element, body = self.bodies[node]
         if element.presence is None or params[self.params.index(element.presence)] != 0:
             return float(params[self.params.index(body.mass)])
         return self.mass_at(params, body.alias)
