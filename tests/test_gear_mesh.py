@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from emasim.errors import InputError
-from emasim.experiments.ablation import _without_stage
+from emasim.experiments.ablation import without_stage
 from emasim.experiments.runs import run_scenario
 from emasim.linear import linearize
 from emasim.plant import actuator as A
@@ -92,7 +92,7 @@ def test_the_mesh_is_in_the_trace_bounds_fmu_and_ablation_and_nowhere_without_it
     assert np.all(np.isfinite(limits[MECHANICAL]) & (limits[MECHANICAL] > 0))
     fmu_outputs = {name for name, _ in fmi.PLANT_OUTPUTS}
     assert MESH_COLUMNS <= fmu_outputs
-    assert _without_stage(plant, "compliance").gear_mesh is None  # the compliance's stage
+    assert without_stage(plant, "compliance").gear_mesh is None  # the compliance's stage
     assert plant.total_inertia_kgm2 == pytest.approx(PRESETS["sea805"]().total_inertia_kgm2)
 
 

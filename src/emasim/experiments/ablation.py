@@ -42,7 +42,7 @@ def _revalidated(scenario: Scenario, **changes) -> Scenario:
     return Scenario.model_validate(data)
 
 
-def _without_stage(plant, stage: str):
+def without_stage(plant, stage: str):
     """The plant without the elements of ``stage`` (their declared ablation stage,
     emasim.plant.element.Element.stage), with what each one's removal changes elsewhere."""
     updates = {}
@@ -53,12 +53,12 @@ def _without_stage(plant, stage: str):
 
 
 def _without_load_motor(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=_without_stage(sc.plant, "load motor"))
+    return _revalidated(sc, plant=without_stage(sc.plant, "load motor"))
 
 
 def _without_digital_drive(sc: Scenario) -> Scenario:
     idealised_speed = PRESETS["sea805-linkage"]().motor.max_speed_rpm
-    plant = _without_stage(sc.plant, "digital drive")
+    plant = without_stage(sc.plant, "digital drive")
     plant = plant.model_copy(
         update={"motor": plant.motor.model_copy(update={"max_speed_rpm": idealised_speed})}
     )
@@ -68,7 +68,7 @@ def _without_digital_drive(sc: Scenario) -> Scenario:
 
 
 def _without_compliance(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=_without_stage(sc.plant, "compliance"))
+    return _revalidated(sc, plant=without_stage(sc.plant, "compliance"))
 
 
 def _without_rudder_feedback(sc: Scenario) -> Scenario:
@@ -76,7 +76,7 @@ def _without_rudder_feedback(sc: Scenario) -> Scenario:
 
 
 def _without_linkage(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=_without_stage(sc.plant, "linkage"))
+    return _revalidated(sc, plant=without_stage(sc.plant, "linkage"))
 
 
 _TAKE_OUT = (  # what takes each stage back to the one before it, from the last stage down

@@ -105,20 +105,15 @@ P_KT = PLANT.params.index("shaft_stiffness_Nm_per_rad")
 P_CT = PLANT.params.index("shaft_damping_Nms_per_rad")
 P_JD = PLANT.params.index("disk_inertia_kgm2")
 P_LM_TAU = PLANT.params.index("load_motor_time_constant_s")
-P_LINK = PLANT.param_offset[
-    "linkage"
-]  # the linkage's parameters (emasim.plant.elements.linkage layout)
+# the linkage's parameters (emasim.plant.elements.linkage layout)
+P_LINK = PLANT.param_offset["linkage"]
 P_LINK_END = P_LINK + L.N_LINK_PARAMS
-
-FRICTION_NONE = fr.FRICTION_NONE
-FRICTION_COULOMB = fr.FRICTION_COULOMB
-FRICTION_LUGRE = fr.FRICTION_LUGRE
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def bristle_step(z0, w, h, p):
     """Exact bristle update over h with the speed w held (see friction.bristle_update)."""
-    if p[P_FRICTION] != FRICTION_LUGRE:
+    if p[P_FRICTION] != fr.FRICTION_LUGRE:
         return z0
     return fr.bristle_update(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 
@@ -126,7 +121,7 @@ def bristle_step(z0, w, h, p):
 @njit(cache=True, inline="always", error_model="numpy")
 def bristle_half_and_full_step(z0, w, h, p):
     """Exact bristle states after h/2 and h with the speed w held (LuGre only)."""
-    if p[P_FRICTION] != FRICTION_LUGRE:
+    if p[P_FRICTION] != fr.FRICTION_LUGRE:
         return z0, z0
     return fr.bristle_half_and_full_step(z0, w, h, p[P_TC], p[P_TS], p[P_WS], p[P_SIGMA0])
 

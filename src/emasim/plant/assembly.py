@@ -429,6 +429,13 @@ from emasim.jit import njit
 DECORATOR = '@njit(cache=True, inline="always", error_model="numpy")'
 
 
+def _without_inputs(lines: list[str]) -> list[str]:
+    """An outputs function's lines, the inputs it reads (none of the outputs needs one, but
+    a law may take one) set to 0 first."""
+    used = [name for name in INPUTS if re.search(rf"\b{name}\b", "\n".join(lines))]
+    return ([f"    {' = '.join(used)} = 0.0"] if used else []) + lines
+
+
 def _function(signature: str, doc: str, lines: list[str], inline: bool = True) -> list[str]:
     decorator = DECORATOR if inline else DECORATOR.replace(', inline="always"', "")
     return ["", "", decorator, f"def {signature}:", f'    """{doc}"""', *lines]
@@ -456,7 +463,7 @@ def generate(plant: PlantLayout, hold: tuple[str, float] | None = None) -> str:
         *_function(
             "plant_outputs(x, p, out)",
             "Every element output of x (emasim.plant.assembly).",
-            [f"    {' = '.join(INPUTS)} = 0.0", *_emit(_prune(outputs))],
+            _without_inputs(_emit(_prune(outputs))),
             inline=False,
         ),
     ]
@@ -466,7 +473,7 @@ def generate(plant: PlantLayout, hold: tuple[str, float] | None = None) -> str:
         functions += _function(
             f"output_{name}(x, p)",
             f"The output {name} of x alone.",
-            [f"    {' = '.join(INPUTS)} = 0.0", *body, "    return value"],
+            [*_without_inputs(body), "    return value"],
         )
     functions += _function(
         "active_states(p)", "How many states move (emasim.plant.assembly).", _active_states(g)
