@@ -120,3 +120,44 @@ def test_a_port_no_element_provides_is_refused():
     )
     with pytest.raises(ValueError, match="no element provides a node for the port '[ab]'"):
         generate(assemble((CART, lost)))
+
+
+def test_a_module_without_an_element_is_the_toy_without_it(toy):
+    """The module of every plant without the mount has no presence test left and gives the
+    equations of the mount's absence (the test above), and says which plants it applies to."""
+    without = load(TOY, absent=frozenset({"mount"}))
+    source = generate(TOY, absent=frozenset({"mount"}))
+    assert "if p[" not in source.split("def active_states")[0]  # no presence test in rhs
+    p = params(present=False)
+    x = np.array([0.3, -1.2, 9.0, 9.0])
+    dx, expected = np.full(4, np.nan), np.full(4, np.nan)
+    without.rhs(x, 0.0, 0.0, 0.0, 0.5, 0.0, p, dx, np.zeros((4, 2)))
+    toy.rhs(x, 0.0, 0.0, 0.0, 0.5, 0.0, p, expected, np.zeros((4, 2)))
+    np.testing.assert_array_equal(dx, expected)
+    assert without.active_states(p) == 2
+    assert without.applies(p) and not without.applies(params(present=True))
+    with pytest.raises(ValueError, match="always present"):
+        generate(TOY, absent=frozenset({"cart"}))
+
+
+def test_the_drive_module_is_every_elements_rhs_on_the_drive_alone():
+    """The loop integrates a plant without the optional bodies (emasim.plant.actuator.DRIVE)
+    with the drive's right-hand side: bit for bit every element's, at random states, for the
+    shipped lumped scenarios; the bench plants are not drive plants."""
+    from emasim.plant import actuator as A
+    from emasim.scenarios.loader import load_scenario
+
+    rng = np.random.default_rng(3)
+    for name in ("speed-step", "position-step", "bench-step"):
+        p = load_scenario(name).setup().plant
+        assert A.DRIVE.applies(p) == (not name.startswith("bench"))
+        if not A.DRIVE.applies(p):
+            continue
+        assert A.DRIVE.active_states(p) == A.active_states(p)
+        for _ in range(50):
+            x = rng.normal(size=A.N_STATE) * 1e-3
+            u = rng.normal(size=5) * 10.0
+            got, want = np.zeros(A.N_STATE), np.zeros(A.N_STATE)
+            A.DRIVE.rhs(x, *u, p, got, np.zeros((4, 2)))
+            A.rhs(x, *u, p, want, np.zeros((4, 2)))
+            np.testing.assert_array_equal(got, want)

@@ -31,10 +31,19 @@ from .elements.linkage import LOAD_HELD, LOAD_LINKAGE, LOAD_LUMPED  # noqa: F401
 # with states after the drive's, the linkage's 16 at the very end: active_states)
 ELEMENTS = ordered(discover())
 PLANT = assemble(ELEMENTS)
-GENERATED = load(PLANT, hold=("load_model", LOAD_HELD))
+HOLD = ("load_model", LOAD_HELD)  # the rudder side held (a co-simulation integrates it)
+GENERATED = load(PLANT, hold=HOLD)
 rhs = GENERATED.rhs  # (x, u_d, u_q, t_load, f_load, t_rudder, p, dx, hinges): dx/dt of x
 plant_outputs = GENERATED.plant_outputs  # (x, p, out): every element output of x
 active_states = GENERATED.active_states  # (p): the states that move
+# the drive alone: every plant without the optional elements that own states (compliance,
+# anchorage, gear mesh, rudder shaft, load motor, linkage), whose rhs runs without their
+# presence tests; DRIVE.applies(p) tells whether the plant of p is one
+DRIVE = load(
+    PLANT,
+    hold=HOLD,
+    absent=frozenset(e.name for e in ELEMENTS if e.presence is not None and e.states),
+)
 STATE_NAMES = PLANT.states.names
 N_STATE = len(PLANT.states)
 N_PARAMS = len(PLANT.params)

@@ -19,6 +19,12 @@ the source of a module of compiled functions:
   its output needs (:func:`_prune`).
 * ``active_states(p)``: the states that move, up to the end of the last present element.
 
+Given the names of elements known to be ``absent``, the module is that of every plant without
+them: their terms are left out and their results, rates and motions written as their absent
+values, with no presence test, and ``applies(p)`` tells whether a plant is such a plant. It
+holds ``rhs`` and ``active_states`` only (emasim.plant.actuator.DRIVE: the presence tests of
+the absent elements cost a third of the lumped plant's right-hand side).
+
 Every index is a literal in the generated source: nothing is kept by hand. The source is
 written to the keyed numba cache folder (emasim.numba_cache), so numba caches its machine code
 as it does any module's, and imported from there.
@@ -62,11 +68,15 @@ class _Statement:
         return used - self.provides
 
 
-class _Plant:
-    """What the generator knows of a plant: its nodes and how each token binds."""
+ABSENT = "False"  # the presence condition of an element known to be absent
 
-    def __init__(self, plant: PlantLayout, hold: tuple[str, float] | None):
-        self.plant, self.hold = plant, hold
+
+class _Plant:
+    """What the generator knows of a plant: its nodes, how each token binds and which
+    elements are known to be absent."""
+
+    def __init__(self, plant: PlantLayout, hold: tuple[str, float] | None, absent=frozenset()):
+        self.plant, self.hold, self.absent = plant, hold, absent
         self.bodies, self.derived, self.port = plant.bodies, plant.derived, plant.port
         self.functions: dict[object, str] = {}
 
@@ -74,10 +84,16 @@ class _Plant:
         """The generated module's name for a compiled function (imported once)."""
         return self.functions.setdefault(function, f"_f{len(self.functions)}")
 
+    def elements_absent(self) -> list:
+        return [e for e in self.plant.elements if e.name in self.absent]
+
     def present(self, element) -> str | None:
-        """The condition that the element is present, None for one always there."""
+        """The condition that the element is present: None for one always there, ABSENT for
+        one known to be absent."""
         if element.presence is None:
             return None
+        if element.name in self.absent:
+            return ABSENT
         return f"p[{self.plant.params.index(element.presence)}] != 0.0"
 
     def bind(self, token: str, element) -> str:
@@ -350,6 +366,14 @@ def _lazy(statements: list[_Statement]) -> list[_Statement]:
     return out
 
 
+def _fixed(statements: list[_Statement]) -> list[_Statement]:
+    """The statements of an absent element (guard ABSENT) replaced by their absent lines."""
+    return [
+        replace(s, lines=s.absent, guard=None, absent=[]) if s.guard == ABSENT else s
+        for s in statements
+    ]
+
+
 def _prune(statements: list[_Statement]) -> list[_Statement]:
     """The sinks and what they need, in their order."""
     needed, kept = set(), []
@@ -406,15 +430,15 @@ def _active_states(g: _Plant) -> list[str]:
     held = "" if g.hold is None else f"p[{layout.params.index(g.hold[0])}] != {float(g.hold[1])!r}"
     always_end = 0
     for element in reversed(layout.elements):
-        if not element.states:
+        present = g.present(element)
+        if not element.states or present == ABSENT:
             continue
         end = layout.state_offset[element.name] + len(element.states)
-        present = g.present(element)
-        if present is None:
+        if element.mechanism and held:
+            present = held if present is None else f"{present} and {held}"
+        elif present is None:
             always_end = max(always_end, end)
             continue
-        if element.mechanism and held:
-            present = f"{present} and {held}"
         lines.append(f"    if {present}:\n        return {end}")
     return [*lines, f"    return {always_end}"]
 
@@ -441,33 +465,21 @@ def _function(signature: str, doc: str, lines: list[str], inline: bool = True) -
     return ["", "", decorator, f"def {signature}:", f'    """{doc}"""', *lines]
 
 
-def generate(plant: PlantLayout, hold: tuple[str, float] | None = None) -> str:
-    """The source of the plant's compiled module (module docstring)."""
-    g = _Plant(plant, hold)
-    order = _node_order(g)
-    motions = _motions(g, order)
-    resolved, exchange = _resolve(g, order, rates=True)
-    rhs = _lazy(_prune([*motions, *_laws(g, "rates", False), *resolved, *_held(g)]))
+def _outputs(g: _Plant, motions: list[_Statement], order: list[str]) -> list[str]:
+    """The source of ``plant_outputs`` and of each ``output_<name>``."""
     outputs = [
         *motions,
         *_laws(g, "values", False),
         *_resolve(g, order, rates=False)[0],
         *_laws(g, "values", True),
     ]
-    functions = [
-        *_function(
-            f"rhs(x, {', '.join(INPUTS)}, p, dx, hinges)",
-            "dx/dt of the plant (emasim.plant.assembly); returns the exchanged force.",
-            [*_emit(rhs), f"    return {exchange or '0.0'}"],
-        ),
-        *_function(
-            "plant_outputs(x, p, out)",
-            "Every element output of x (emasim.plant.assembly).",
-            _without_inputs(_emit(_prune(outputs))),
-            inline=False,
-        ),
-    ]
-    for i, name in enumerate(plant.outputs.names):
+    functions = _function(
+        "plant_outputs(x, p, out)",
+        "Every element output of x (emasim.plant.assembly).",
+        _without_inputs(_emit(_prune(outputs))),
+        inline=False,
+    )
+    for i, name in enumerate(g.plant.outputs.names):
         one = [s for s in outputs if not s.sink or s.lines[0].startswith(f"out[{i}] =")]
         body = [line.replace(f"out[{i}] =", "value =") for line in _emit(_prune(one))]
         functions += _function(
@@ -475,9 +487,38 @@ def generate(plant: PlantLayout, hold: tuple[str, float] | None = None) -> str:
             f"The output {name} of x alone.",
             [*_without_inputs(body), "    return value"],
         )
+    return functions
+
+
+def generate(
+    plant: PlantLayout, hold: tuple[str, float] | None = None, absent: frozenset = frozenset()
+) -> str:
+    """The source of the plant's compiled module, or of that of every plant without the
+    elements ``absent`` (module docstring)."""
+    g = _Plant(plant, hold, absent)
+    if any(e.presence is None for e in g.elements_absent()):
+        raise ValueError(f"{sorted(absent)}: an element always present cannot be absent")
+    order = _node_order(g)
+    motions = _fixed(_motions(g, order))
+    resolved, exchange = _resolve(g, order, rates=True)
+    rhs = _lazy(_prune(_fixed([*motions, *_laws(g, "rates", False), *resolved, *_held(g)])))
+    functions = _function(
+        f"rhs(x, {', '.join(INPUTS)}, p, dx, hinges)",
+        "dx/dt of the plant (emasim.plant.assembly); returns the exchanged force.",
+        [*_emit(rhs), f"    return {exchange or '0.0'}"],
+    )
     functions += _function(
         "active_states(p)", "How many states move (emasim.plant.assembly).", _active_states(g)
     )
+    if absent:
+        tests = [f"p[{plant.params.index(e.presence)}] == 0.0" for e in g.elements_absent()]
+        functions += _function(
+            "applies(p)",
+            "Whether the plant of p has none of the absent elements.",
+            [f"    return {' and '.join(tests)}"],
+        )
+    else:
+        functions += _outputs(g, motions, order)
     imports = [
         f"from {f.__module__} import {f.__name__} as {alias}" for f, alias in g.functions.items()
     ]
@@ -494,9 +535,10 @@ def _folder() -> Path:
         return Path(tempfile.mkdtemp(prefix="emasim-generated-"))
 
 
-def load(plant: PlantLayout, hold: tuple[str, float] | None = None):
-    """The plant's generated module, written (once per source) and imported."""
-    source = generate(plant, hold)
+def load(plant: PlantLayout, hold: tuple[str, float] | None = None, absent=frozenset()):
+    """The plant's generated module (of the plants without ``absent``), written (once per
+    source) and imported."""
+    source = generate(plant, hold, absent)
     digest = hashlib.sha256(source.encode()).hexdigest()[:16]
     path = _folder() / f"plant_{digest}.py"
     if not path.exists() or path.read_text() != source:

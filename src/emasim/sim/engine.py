@@ -41,6 +41,7 @@ from ..interface import (
 from ..jit import njit
 from ..numerics import clamp
 from ..plant import actuator as A
+from ..plant import integrator
 from ..plant.elements.motor import limit_voltage
 from ..plant.elements.ratings import folded_back, heat_update, speed_foldback
 from ..plant.sensors import measure, seed_noise
@@ -186,48 +187,15 @@ def control_tick(t, tick, model, data, laws):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _stage(xs, x, k, dt, z, n):
-    """xs = x + dt k for the first n states but the bristle, which is set to z."""
-    for i in range(n):
-        xs[i] = x[i] + dt * k[i]
-    xs[A.X_Z] = z
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
-    """Advance x by one RK4 sub-step h with the voltages held; ``work`` is a
-    :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
-
-    The loads come as the three encoded signals, not as the Model record: passing a
-    record into this function, called at every sub-step, costs 15 % of the lumped loop
-    (measured: 0.87 against 0.75 us per sub-step, interleaved in one process).
-
-    The bristle state is split off: in the RK4 stages it takes its exact value for the speed
-    at the start of the sub-step held, and at the end of the sub-step its exact value for the
-    mean speed over the sub-step. The loads are held at their value at the sub-step's
-    midpoint: exact for steps that fall on sub-step boundaries (a step evaluated at a stage on
-    its edge would leak into the step before it, a first-order error) and second-order
-    accurate for smooth loads.
-    """
+    """Advance x by one RK4 sub-step h of every element's right-hand side (the presence of
+    each tested in it) with the voltages held (emasim.plant.integrator.sub_step); ``work`` is
+    a :class:`emasim.sim.core.Workspace` (its RK4 stages and hinge table are overwritten).
+    The loop runs the same scheme (emasim.plant.integrator.tick)."""
     k1, k2, k3, k4, xs = work.rk4
-    hinges = work.hinges
     n = A.active_states(p)
-    z0 = x[A.X_Z]
-    w0 = x[A.X_WM]
-    z_half, z_full = A.bristle_half_and_full_step(z0, w0, h, p)
-    t_load = signal_value(motor_load, t + 0.5 * h)
-    f_load = signal_value(rod_load, t + 0.5 * h)
-    r_load = signal_value(rudder_load, t + 0.5 * h)
-    A.rhs(x, u_d, u_q, t_load, f_load, r_load, p, k1, hinges)
-    _stage(xs, x, k1, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k2, hinges)
-    _stage(xs, x, k2, 0.5 * h, z_half, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k3, hinges)
-    _stage(xs, x, k3, h, z_full, n)
-    A.rhs(xs, u_d, u_q, t_load, f_load, r_load, p, k4, hinges)
-    for i in range(n):
-        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    x[A.X_Z] = A.bristle_step(z0, 0.5 * (w0 + x[A.X_WM]), h, p)
+    integrator.sub_step(A.rhs, n, t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h,
+             k1, k2, k3, k4, xs, work.hinges)  # fmt: skip
 
 
 @njit(cache=True, error_model="numpy")
@@ -275,7 +243,9 @@ def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
 def run_ticks(k0, k1, model, data, position_law, speed_law, current_law):
     """Run ticks k0 .. k1-1 in place on ``data`` (the plant state, the sensors', the drive's and
     the slots' states, the trace), reading ``model`` (emasim.sim.core), every array of both
-    borrowed (emasim.sim.borrowed).
+    borrowed (emasim.sim.borrowed). The plant is integrated over each tick with the drive's
+    right-hand side where the plant is the drive alone (emasim.plant.actuator.DRIVE), every
+    element's otherwise.
 
     Row k // record_every of the trace is recorded at every ``record_every``-th tick.
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
@@ -288,7 +258,9 @@ def run_ticks(k0, k1, model, data, position_law, speed_law, current_law):
     timing = model.timing
     ts = timing.sample_period_s
     h = ts / timing.substeps
-    x, p, drive, status, work = data.x, model.params, data.drive, data.status, data.work
+    x, p, drive, status = data.x, model.params, data.drive, data.status
+    (s1, s2, s3, s4, xs), hinges = data.work.rk4, data.work.hinges  # the RK4 stages
+    drive_only = A.DRIVE.applies(p)
     motor_load, rod_load, rudder_load = model.motor_load, model.rod_load, model.rudder_load
     laws = (position_law, speed_law, current_law)
     delay = timing.delay_substeps
@@ -301,12 +273,15 @@ def run_ticks(k0, k1, model, data, position_law, speed_law, current_law):
         if k % timing.record_every == 0:
             r = k // timing.record_every
             record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref)
-        for j in range(timing.substeps):
-            if j < delay:  # the computation delay: the previous command still acts
-                v_d, v_q = drive[D_UD], drive[D_UQ]
-            else:
-                v_d, v_q = u_d, u_q
-            plant_step(t + j * h, x, v_d, v_q, p, motor_load, rod_load, rudder_load, h, work)
+        v_d, v_q, n = drive[D_UD], drive[D_UQ], timing.substeps  # v: during the delay
+        if drive_only:
+            integrator.tick(A.DRIVE.rhs, A.DRIVE.active_states(p), t, x, u_d, u_q, v_d, v_q,
+                            delay, n, h, p, motor_load, rod_load, rudder_load, s1, s2, s3, s4,
+                            xs, hinges)  # fmt: skip
+        else:
+            integrator.tick(A.rhs, A.active_states(p), t, x, u_d, u_q, v_d, v_q, delay, n, h,
+                            p, motor_load, rod_load, rudder_load, s1, s2, s3, s4, xs,
+                            hinges)  # fmt: skip
         drive[D_UD], drive[D_UQ] = u_d, u_q
         if not check_state(x, p, model.limits, status, k + 1):
             return
