@@ -12,10 +12,10 @@ eigenvalues 0, 0 and -zeta omega_n +- i omega_n sqrt(1 - zeta^2).
 
 import math
 
+import control
 import numpy as np
 import pytest
 
-from emasim.errors import InputError
 from emasim.experiments.ablation import without_stage
 from emasim.experiments.runs import run_scenario
 from emasim.linear import linearize
@@ -111,7 +111,12 @@ def test_a_run_with_the_mesh_records_it_and_holds_the_position_step():
     assert np.abs(torque).max() > 1.0  # the mesh carries the drive's torque
 
 
-def test_the_linearisation_refuses_the_mesh_it_does_not_write_out():
+def test_the_linearisation_takes_the_mesh_in():
+    """emasim.linearize differentiates the generated plant, so the mesh's states are in the
+    model with no edit to emasim.linear, and the loop still tracks at DC with stable poles."""
     scenario = load_scenario("position-step", settings=['plant.preset="sea805-coupling"'])
-    with pytest.raises(InputError, match="plant.gear_mesh is not written out in emasim.linear"):
-        linearize(scenario)
+    plant = linearize(scenario, loop="plant")
+    assert {"screw_angle_rad", "screw_speed_rad_s"} <= set(plant.state_labels)
+    loop = linearize(scenario)
+    assert control.dcgain(loop) == pytest.approx(1.0, abs=1e-9)
+    assert np.all(loop.poles().real < 0)

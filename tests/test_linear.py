@@ -172,38 +172,62 @@ def test_the_model_names_its_signals_and_tracks_at_dc():
 
 
 def test_on_the_lumped_stage_rudder_feedback_is_rod_feedback():
+    """The rudder encoder's angle read back through the rigid kinematics' table is the rod's
+    position: the two loops agree to the table's interpolation (1e-6)."""
     rod = linearize(scenario("position-step", ["position=pid", "speed=pi"], []))
     rudder = linearize(
         scenario("position-step", ["position=pid", "speed=pi"], ["loop.position_feedback='rudder'"])
     )
-    for matrix in ("A", "B", "C", "D"):
-        np.testing.assert_array_equal(getattr(rod, matrix), getattr(rudder, matrix))
+    w = 2 * np.pi * np.geomspace(0.1, 1e3, 30)
+    ratio = (
+        control.frequency_response(rod, w).complex / control.frequency_response(rudder, w).complex
+    )
+    np.testing.assert_allclose(ratio, 1.0, atol=1e-6)
+
+
+OPEN_LOOP_CASES = {  # laws on the error alone, no feed-forward: then T = L / (1 + L)
+    "position-pid-on-error": ("position-step", *POSITION_CASES["pid-derivative-on-error"]),
+    "speed-pi": ("speed-step", ["speed=pi"], []),
+}
+
+
+@pytest.mark.parametrize("case", OPEN_LOOP_CASES)
+def test_the_open_loop_closes_into_the_closed_loop_and_has_margins(case):
+    """loop="open" breaks the loop at its feedback: for a law that acts on the error alone,
+    L / (1 + L) is the closed loop, and the margins of L are finite and positive."""
+    name, controllers, settings = OPEN_LOOP_CASES[case]
+    s = scenario(name, controllers, settings)
+    closed, open_loop = linearize(s), linearize(s, loop="open")
+    w = 2 * np.pi * np.geomspace(0.1, 1e3, 30)
+    big_l = control.frequency_response(open_loop, w).complex
+    t = control.frequency_response(closed, w).complex
+    np.testing.assert_allclose(big_l / (1 + big_l), t, rtol=1e-6)
+    gain_margin, phase_margin, _, _ = control.margin(open_loop)
+    assert gain_margin > 1.0 and 0.0 < phase_margin < 180.0
 
 
 @pytest.mark.parametrize(
-    ("name", "controllers", "settings", "match"),
+    ("name", "controllers", "settings", "options", "match"),
     [
-        ("speed-step", ["speed=smc"], [], "speed controller 'smc'"),
-        ("speed-step", ["speed=st-gpio"], [], "speed controller 'st-gpio'"),
-        ("speed-step", ["speed=adrc"], [], "speed controller 'adrc'"),
-        ("position-step", ["position=fuzzy-pi", "speed=pi"], [], "position controller 'fuzzy-pi'"),
-        ("position-step", ["position=rbf-smc", "speed=pi"], [], "position controller 'rbf-smc'"),
-        ("position-step", ["position=pid", "speed=st"], [], "speed controller 'st'"),
-        ("bench-step", ["position=pid", "speed=pi"], [], "rudder feedback through the clearance"),
-        (
-            "position-step",
-            ["position=pid", "speed=pi"],
-            ["plant.preset='sea805-linkage'"],
-            "the clearance-joint linkage",
-        ),
+        ("speed-step", ["speed=smc"], [], {}, "speed controller 'smc'"),
+        ("speed-step", ["speed=st-gpio"], [], {}, "speed controller 'st-gpio'"),
+        ("speed-step", ["speed=adrc"], [], {}, "speed controller 'adrc'"),
+        ("position-step", ["position=fuzzy-pi", "speed=pi"], [], {}, "'fuzzy-pi'"),
+        ("position-step", ["position=rbf-smc", "speed=pi"], [], {}, "'rbf-smc'"),
+        ("position-step", ["position=pid", "speed=st"], [], {}, "speed controller 'st'"),
+        ("position-step", ["position=pid", "speed=pi"], [], {"gaps": "open"}, "gaps must be"),
+        ("position-step", ["position=pid", "speed=pi"], [], {"loop": "x"}, "loop must be"),
+        ("position-step", ["position=pid", "speed=pi"], [], {"at_s": 99.0}, "at_s must be"),
+        ("bench-step", ["position=pid", "speed=pi"], [], {}, "clearance-joint linkage"),
         (
             "position-step",
             ["position=pid", "speed=pi"],
             ["plant.load_motor={inertia_kgm2=0.01, bandwidth_Hz=200.0, max_torque_Nm=500.0}"],
+            {},
             "load_motor",
         ),
     ],
 )
-def test_what_has_no_linear_form_is_refused(name, controllers, settings, match):
+def test_what_has_no_linear_form_is_refused(name, controllers, settings, options, match):
     with pytest.raises(InputError, match=match):
-        linearize(load_scenario(name, controllers=controllers, settings=settings))
+        linearize(load_scenario(name, controllers=controllers, settings=settings), **options)

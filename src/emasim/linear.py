@@ -1,32 +1,41 @@
-"""The closed loop of a scenario as a python-control model, linearised (issue 14, item 6).
+"""A scenario's loop as a python-control model, linearised from the simulated plant itself.
 
-:func:`linearize` returns the continuous-time ``control.StateSpace`` from the loop's reference
-to the signal it feeds back, for the drive without friction and with its backlash gap closed,
-about a steady motor speed w0 (default standstill) with id = 0. SI units throughout; every
-symbol below is a deviation from the operating point unless it carries a 0.
+:func:`linearize` differentiates the compiled right-hand side the engine integrates
+(emasim.plant.assembly: every element's terms, so every plant, the bench's included) at an
+operating point and closes it with the controllers' linear forms. SI units; every symbol is a
+deviation from the operating point.
 
-Plant (emasim.plant.elements.motor, .drivetrain, .actuator), linearised at (id0 = 0, iq0, w0):
+Plant. A = d rhs / dx over the states that move (emasim.plant.actuator.active_states),
+B = d rhs / d(vd, vq), C = d y / dx for the readings y = (id, iq, motor speed, the position the
+loop closes on: emasim.sim.engine.fed_back_position of the noiseless readings
+emasim.plant.sensors.true_values), by central differences with steps of 1000 times each
+state's integration tolerance (or 1e-6 of its value, if larger). A central difference is the
+derivative where the right-hand side is smooth, and at a kink (a transmission between driving
+and back-driven at rest, a contact at its edge) the mean of the two one-sided slopes: the
+describing function of a small sinusoid about the point. Where it is not continuous the
+difference grows as the step shrinks: where one side is smooth (a transmission of efficiency
+below 1 under load at rest, back-driven at the point itself and driving just beyond) the
+slope of the branch the point lies on is taken, its one-sided difference; where both sides
+jump the point is refused, naming the state.
 
-    Ld did/dt = vd - Rs id + np Lq (w0 iq + iq0 wm)                      (V)
-    Lq diq/dt = vq - Rs iq - np (Ld w0 id + psi_f wm)                    (V)
-    Te        = kt iq + 1.5 np (Ld - Lq) iq0 id,   kt = 1.5 np psi_f     (N m)
-    J dwm/dt  = Te - B wm - (K / eta) Fb                                 (N m)
-    M_L dv_L/dt = Fb - c_L v_L                                           (N)
-    Fb        = k_b (K theta_m - x_L) + c_b (K wm - v_L)                 (N)
+The operating point. By default the steady state at the motor speed w0 (``operating_speed_rpm``,
+default standstill) with id = 0 and the scenario's loads at t = 0: every rate zero but the
+motor angle's, the nodes moving with the rotor (the rigid motion r, A r = 0), solved for the
+other states and the voltages (scipy.optimize.root). With ``at_s`` instead: the state the
+scenario's own run reaches at that time, with the voltages applied then (the bench at rest
+under its standing preload, say).
 
-iq0 = (B + K^2 c_L / eta) w0 / kt holds the steady speed. The gap is closed by keeping its
-contact spring k_b, c_b in permanent contact (width 0, no limit on the damping): it is what the
-simulation integrates with plant.backlash.width_mm = 0 (whose damping limit |c_b dv| <=
-k_b |dx| only acts while the spring is nearly unloaded), it behaves as the rigid connection
-below its contact mode (about 300 Hz on sea805) and it keeps the motor encoder's K theta_m
-apart from the rod's x_L. M_L is PlantParams.load_mass_kg, the rod and the rudder inertia
-through the arm. The reflected torque is taken on its driving branch, K Fb / eta (steady motion
-is always driven: the load only dissipates); a reversing small signal back-drives half of each
-cycle, so with eta < 1 this is an approximation. The optional elements add their nodes with
-the same equations as emasim.plant.actuator, linear already: the series compliance (node m_n
-between the gap and the spring k_s, c_s), the anchorage (body x_h on k_a, c_a, the nut at
-x_h + K theta_m) and the rudder shaft (torsion k_t, c_t from the rocker angle x_L / arm to the
-disk J_d).
+Gaps. With ``gaps="closed"`` (default) each element's play is closed (Element.closed: its
+contact kept in permanent contact, loaded by emasim.plant.element.CLOSED_OVERLAP so that its
+damping acts on a small signal): the rigid connection below its contact mode, which keeps the
+motor encoder's K theta_m apart from the rod. With ``gaps="as is"`` the plant is linearised as
+it stands at the operating point: a gap open there passes no force. The clearance-joint
+linkage's hinges are taken as they stand at the operating point either way. Friction is dropped
+(``friction=False``, the default) or linearised at the operating point (``friction=True``: the
+LuGre bristles' pre-sliding stiffness at rest).
+
+A speed loop never sees where the drive stands: its states are taken less the rigid motion,
+x - r theta_m / r_theta (theta_m dropped), which leaves out that pole at s = 0.
 
 Controllers (emasim.control.current, .pid) in continuous time, with the gains of their
 ``build`` (the ones the simulation runs):
@@ -39,122 +48,175 @@ Controllers (emasim.control.current, .pid) in continuous time, with the gains of
 the speed PI (iq* from w* and wm) being the same law with Kd = 0; its Kff (acceleration
 feed-forward, J/kt or 0) acts on the rate it is given: dw*/dt of a speed reference, or the
 position loop's Kff d2r/dt2. Sample-and-hold and computation delay, Td + Ts/2, act on the
-voltage: (vd, vq) = P(s) (ud*, uq*), P the Pade approximant of order PADE_ORDER. Without it the
-decoupling would cancel the cross-coupling and the back-EMF exactly, leaving per axis
-L di/dt = Kp (i* - i) + I - Rs i, i.e. i = alpha_c / (s + alpha_c) i* with the internal-model
-gains; with it what remains of them is np psi_f (P(s) - 1) wm on the q axis and the like.
+voltage: (vd, vq) = P(s) (ud*, uq*), P the Pade approximant of order PADE_ORDER.
 
 The feed-forwards differentiate the reference: the loop is built with r, dr/dt (and d2r/dt2)
 as separate inputs, T_k(s) = C (sI - A)^-1 b_k + d_k, and combined exactly as
 T(s) = sum_k s^k T_k(s) (:func:`_with_rates`).
 
-Not modelled: friction, the backlash's width, end stops, current, speed and voltage limits,
-anti-windup, the drive's ratings (none acts on a small signal), sensor imperfections (the
-sensors are taken as ideal, sampled at every tick). Refused with InputError: controllers
-without a linear form (anything but position 'pid'/'pi', speed 'pi'), the clearance-joint
-linkage (with any feedback, 'rudder' included), the load motor, and any element this module
-does not write out (:data:`WRITTEN_OUT`: an element added since, such as the gear mesh, is
-refused, never left out in silence). On the lumped stage the
-'rudder' feedback reads x_L, the 'rod' feedback the rod's extension x_L - x_h and the 'motor'
-feedback K theta_m.
+``loop`` chooses the model: "closed" (reference -> the fed-back signal), "open" (the loop
+broken at its outermost feedback: L from the fed-back reading the controller gets to the
+reading the plant gives, the reference zero, so that the closed loop is L / (1 + L) and
+``control.stability_margins(L)`` gives the loop's margins), or "plant" ((vd, vq) -> (id, iq,
+motor speed, fed-back position); its inputs named vd and vq, in V).
+
+Not modelled: the current, speed and voltage limits and anti-windup (none acts on a small
+signal at an operating point inside them), sensor imperfections (ideal, sampled at every
+tick). Refused with InputError: controllers without a linear form (anything but position
+'pid'/'pi', speed 'pi'), a plant whose right-hand side is not continuous at the operating
+point, and, until their small-signal models are checked against the simulation as the lumped
+plants' are (tests/test_linear.py), the clearance-joint linkage and the load motor: the bench.
 """
 
 import control
 import numpy as np
+from scipy import optimize
 
 from .config import RPM
 from .control import current as cur
 from .control import pid
 from .control.pid import PositionPID, SpeedPI
 from .errors import InputError
+from .interface import M_ID, M_IQ, M_SPEED, N_MEAS
 from .plant import actuator as A
+from .plant.elements import friction as fr
+from .plant.sensors import true_values
 from .scenarios.schema import Scenario
+from .signals import signal_value
+from .sim.core import D_UD, D_UQ
+from .sim.engine import EngineRun, fed_back_position
 from .sim.setup import plant_facts
 
 PADE_ORDER = 3  # of the delay's approximant: within 1e-5 rad of its phase up to 1 / (Td + Ts/2)
+STEP_TOLERANCES = 1e3  # a state's difference step, in its integration tolerances
+CONTINUITY = 10.0  # a column whose difference grows this much at a tenth of the step: a jump
+GAPS = ("closed", "as is")
+READINGS = ("id_A", "iq_A", "motor_speed_rad_s", "measured_position_m")  # the plant's outputs
+LOOPS = ("closed", "open", "plant")
 
 
-def linearize(scenario: Scenario, *, operating_speed_rpm: float = 0.0) -> control.StateSpace:
-    """The closed loop of ``scenario`` as a continuous-time state-space model.
+def linearize(
+    scenario: Scenario,
+    *,
+    operating_speed_rpm: float = 0.0,
+    at_s: float | None = None,
+    gaps: str = "closed",
+    friction: bool = False,
+    loop: str = "closed",
+) -> control.StateSpace:
+    """The loop of ``scenario`` as a continuous-time state-space model (module docstring).
 
     Parameters
     ----------
-    scenario : a validated Scenario; its friction is dropped and its backlash gap closed.
+    scenario : a validated Scenario.
     operating_speed_rpm : the steady motor speed w0 to linearise about (id = 0).
+    at_s : linearise about the state the scenario's run reaches at this time instead.
+    gaps : "closed" (each play closed, in loaded contact) or "as is".
+    friction : linearise the friction at the operating point (default: dropped).
+    loop : "closed", "open" or "plant".
 
     Returns
     -------
-    control.StateSpace, one input and one output: for a position reference, from the rod
-    position reference ``position_ref_m`` (m) to the position the loop feeds back,
-    ``measured_position_m`` (m: x_L - x_h on the rod sensor, x_L on the rudder encoder,
-    K theta_m on the motor encoder); for a speed reference, from ``speed_ref_rad_s`` to
-    ``motor_speed_rad_s`` (rad/s). Its states are named by block (plant, current_pi,
-    delay_d, delay_q, speed_pi, position_pid).
+    control.StateSpace. "closed", one input and one output: for a position reference, from
+    ``position_ref_m`` (m) to ``measured_position_m`` (m: x_L - x_h on the rod sensor, the rod
+    position of the rudder encoder's angle, K theta_m on the motor encoder); for a speed
+    reference, from ``speed_ref_rad_s`` to ``motor_speed_rad_s`` (rad/s). "open": from the
+    fed-back reading to the plant's (same unit). "plant": (vd_V, vq_V) -> (id_A, iq_A,
+    motor_speed_rad_s, measured_position_m). Its plant states are named as the simulation's.
 
     Raises
     ------
-    InputError : a controller or a plant element without a linear form (module docstring,
-    which states the equations and the approximations).
+    InputError : a controller without a linear form, an option out of its range, or a plant
+    not continuous at the operating point.
     """
-    _refuse_nonlinear(scenario)
-    p = scenario.plant.pack()
+    _refuse(scenario, gaps, loop, at_s)
+    setup = scenario.setup()
+    p = _small_signal_plant(setup.plant, gaps, friction)
+    position = scenario.controllers.position is not None
+    t0 = 0.0 if at_s is None else at_s
+    x0, u0 = (  # the steady state of the plant as it is (its gaps open), its friction dropped
+        _operating_point(
+            setup, _small_signal_plant(setup.plant, "as is", friction), operating_speed_rpm * RPM
+        )
+        if at_s is None
+        else _state_at(setup, at_s)
+    )
+    plant = _plant(setup, p, x0, u0, t0, position)
+    if loop == "plant":
+        return plant
     facts, ts = plant_facts(scenario.plant), scenario.solver.sample_period_s
     c = scenario.controllers
-    w0 = operating_speed_rpm * RPM
-    iq0 = (p[A.P_B] + p[A.P_K] ** 2 * p[A.P_CL] / p[A.P_ETA]) * w0 / facts.torque_constant_Nm_per_A
+    w0, iq0 = x0[A.X_WM], x0[A.X_IQ]
     delay = scenario.loop.computation_delay_s + 0.5 * ts
-    feedback = None if c.position is None else scenario.loop.position_feedback
     blocks = [
-        _plant(p, w0, iq0, feedback),
+        plant,
         _current_loop(c.current.build(facts, ts).params, w0, iq0),
         _delay(delay, "d"),
         _delay(delay, "q"),
-        _pid(c.speed.build(facts, ts).params, "speed_ref", "motor_speed", "iq_ref", "speed_pi"),
     ]
-    if c.position is None:
-        references, output = ["speed_ref", "speed_ref_rate"], "motor_speed"
-        labels = ("speed_ref_rad_s", "motor_speed_rad_s")
-    else:
+    speed_in = "motor_speed_fb" if loop == "open" and not position else "motor_speed_rad_s"
+    blocks.append(
+        _pid(c.speed.build(facts, ts).params, "speed_ref", speed_in, "iq_ref", "speed_pi")
+    )
+    if position:
         law = c.position.build(facts, ts).params
-        blocks.append(_pid(law, "position_ref", "position", "speed_ref", "position_pid"))
+        measured = "position_fb" if loop == "open" else "measured_position_m"
+        blocks.append(_pid(law, "position_ref", measured, "speed_ref", "position_pid"))
         references = ["position_ref", "position_ref_rate", "position_ref_accel"]
-        output, labels = "position", ("position_ref_m", "measured_position_m")
-    loop = control.interconnect(
+        output, labels = "measured_position_m", ("position_ref_m", "measured_position_m")
+    else:
+        references = ["speed_ref", "speed_ref_rate"]
+        output, labels = "motor_speed_rad_s", ("speed_ref_rad_s", "motor_speed_rad_s")
+    ignore_inputs = ["speed_ref_accel"]  # the engine gives the speed loop no acceleration
+    if loop == "open":
+        broken = "position_fb" if position else "motor_speed_fb"
+        ignore_inputs += references
+        references = [broken]
+    closed = control.interconnect(
         blocks,
         inplist=references,
         outlist=[output],
-        ignore_inputs=["speed_ref_accel"],  # the engine gives the speed loop no acceleration
+        ignore_inputs=ignore_inputs,
         ignore_outputs=["iq_ref_rate"],  # nor the current loop a rate
     )
+    if loop == "open":  # negative feedback: the closed loop is L / (1 + L)
+        return control.ss(
+            closed.A,
+            closed.B,
+            -closed.C,
+            -closed.D,
+            inputs=[f"{labels[1]}_fed_back"],
+            outputs=[labels[1]],
+            states=closed.state_labels,
+            name=f"{scenario.name}-open-loop",
+        )
     return control.ss(
-        *_with_rates(loop),
+        *_with_rates(closed),
         inputs=[labels[0]],
         outputs=[labels[1]],
-        states=loop.state_labels,
+        states=closed.state_labels,
         name=f"{scenario.name}-linear",
     )
 
 
-# the elements whose small-signal terms _plant writes out, or that act on no small signal
-WRITTEN_OUT = frozenset(
-    {
-        "motor",
-        "friction",
-        "transmission",
-        "backlash",
-        "rod",
-        "end_stops",
-        "ratings",
-        "compliance",
-        "anchorage",
-        "rudder_shaft",
-    }
-)
-
-
-def _refuse_nonlinear(scenario: Scenario) -> None:
-    """InputError, one line, for a controller or a plant element without a linear form."""
-    c, plant = scenario.controllers, scenario.plant
+def _refuse(scenario: Scenario, gaps: str, loop: str, at_s: float | None) -> None:
+    """InputError, one line, for an option out of range or a controller without a linear form."""
+    if gaps not in GAPS:
+        raise InputError(f"linearize: gaps must be one of {', '.join(GAPS)}, got {gaps!r}")
+    if loop not in LOOPS:
+        raise InputError(f"linearize: loop must be one of {', '.join(LOOPS)}, got {loop!r}")
+    if at_s is not None and not 0.0 <= at_s <= scenario.duration_s:
+        raise InputError(
+            f"linearize: at_s must be within the run, 0 to {scenario.duration_s:g} s, got {at_s}"
+        )
+    plant = scenario.plant
+    if plant.linkage is not None or plant.load_motor is not None:  # differentiated, not checked
+        what = "clearance-joint linkage (plant.linkage)" if plant.linkage else "plant.load_motor"
+        raise InputError(
+            f"linearize: the {what} is not yet validated against the simulation; "
+            "use the lumped rudder stage without it"
+        )
+    c = scenario.controllers
     if not isinstance(c.speed, SpeedPI):
         raise InputError(
             f"linearize: the speed controller '{c.speed.name}' has no linear form; use speed=pi"
@@ -164,117 +226,197 @@ def _refuse_nonlinear(scenario: Scenario) -> None:
             f"linearize: the position controller '{c.position.name}' has no linear form; "
             "use position=pid or position=pi"
         )
-    if plant.linkage is not None:
-        what = (
-            "rudder feedback through the" if scenario.loop.position_feedback == "rudder" else "the"
-        )
-        raise InputError(
-            f"linearize: {what} clearance-joint linkage (plant.linkage) has no linear form; "
-            "use the lumped rudder stage"
-        )
-    if plant.load_motor is not None:
-        raise InputError("linearize: plant.load_motor has no linear form; remove it")
-    unknown = sorted(set(A.PLANT.present_elements(plant.pack())) - WRITTEN_OUT)
-    if unknown:
-        raise InputError(
-            f"linearize: plant.{unknown[0]} is not written out in emasim.linear yet; remove it"
-        )
 
 
-def _plant(p: np.ndarray, w0: float, iq0: float, feedback: str | None) -> control.StateSpace:
-    """The motor's dq currents and the drive train, linearised: inputs (vd, vq), outputs
-    (id, iq, motor speed and, in a position loop, the position read through ``feedback``).
+def _small_signal_plant(params: np.ndarray, gaps: str, friction: bool) -> np.ndarray:
+    """The packed plant with its plays closed (gaps="closed") and its friction dropped."""
+    p = params.copy()
+    present = A.PLANT.present_elements(p)
+    for element in A.PLANT.elements:
+        if gaps == "closed" and element.name in present:
+            for name, value in element.closed:
+                p[A.PLANT.params.index(name)] = value
+    if not friction:
+        p[A.P_FRICTION] = fr.FRICTION_NONE
+    return p
 
-    A speed loop never sees where the drive stands: its position states are the coordinates
-    less the rigid motion with the rotor, q - r theta_m (r moves every node with the nut, so
-    no spring deflects), which leaves out the pole at s = 0 of that motion."""
-    coords, masses, stiffness, damping, rigid = _drive_train(p)
-    n = len(coords)
-    names = [A.STATE_NAMES[i] for i in coords]
-    if feedback is None:
-        to_states = np.eye(n)[1:] - np.outer(rigid[1:], np.eye(n)[0])  # theta_m is q[0]
-        from_states = np.eye(n)[:, 1:]  # the deflections: K q = K (q - r theta_m)
-        names = [f"{name}_less_rigid" for name in names[1:]]
-    else:
-        to_states = from_states = np.eye(n)
-    m = len(names)
-    rs, ld, lq, psi, n_p = p[A.P_RS], p[A.P_LD], p[A.P_LQ], p[A.P_PSI], p[A.P_NP]
-    i_d, i_q, q, v = 0, 1, slice(2, 2 + m), slice(2 + m, 2 + m + n)
-    w = 2 + m  # the motor speed, the first velocity
-    a = np.zeros((2 + m + n, 2 + m + n))
-    a[i_d, [i_d, i_q, w]] = np.array([-rs, n_p * lq * w0, n_p * lq * iq0]) / ld
-    a[i_q, [i_d, i_q, w]] = np.array([-n_p * ld * w0, -rs, -n_p * psi]) / lq
-    a[q, v] = to_states
-    a[v, q] = -stiffness @ from_states / masses[:, None]
-    a[v, v] = -damping / masses[:, None]
-    a[w, [i_d, i_q]] += np.array([1.5 * n_p * (ld - lq) * iq0, 1.5 * n_p * psi]) / masses[0]
-    b = np.zeros((2 + m + n, 2))
-    b[i_d, 0], b[i_q, 1] = 1.0 / ld, 1.0 / lq
-    c = np.zeros((3 if feedback is None else 4, 2 + m + n))
-    c[0, i_d] = c[1, i_q] = c[2, w] = 1.0
-    if feedback == "motor":
-        c[3, 2] = p[A.P_K]
-    elif feedback is not None:  # the rudder through the lumped arm reads x_L, the rod sensor
-        c[3, 2 + coords.index(A.X_XL)] = 1.0  # its extension x_L - x_h
-        if feedback == "rod" and A.X_XH in coords:
-            c[3, 2 + coords.index(A.X_XH)] = -1.0
-    velocities = [A.STATE_NAMES[i + 1] for i in coords]  # each position's rate follows it
-    return control.ss(
-        a,
-        b,
-        c,
-        0,
-        inputs=["vd", "vq"],
-        outputs=["id", "iq", "motor_speed", "position"][: c.shape[0]],
-        states=["id_A", "iq_A", *names, *velocities],
-        name="plant",
+
+def _loads(setup, t: float) -> np.ndarray:
+    """The three loads (motor N m, rod N, rudder N m) at time t."""
+    return np.array(
+        [signal_value(s, t) for s in (setup.motor_load, setup.rod_load, setup.rudder_load)]
     )
 
 
-def _drive_train(p: np.ndarray) -> tuple[list[int], np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The linear drive train M q'' + C q' + K q = Te e_theta: (the coordinates q, motor angle
-    first, as their state indices in emasim.plant.actuator; the masses M; K; C; the rigid
-    motion r per motor radian, K r = 0).
+def _rates(p: np.ndarray, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    """dx/dt of the plant p at x, inputs (vd, vq, motor load, rod load, rudder load)."""
+    dx = np.zeros(A.N_STATE)
+    A.rhs(x, *inputs, p, dx, np.zeros((4, 2)))
+    return dx
 
-    Each spring-damper F = k d + c d' acts across d = g . q and pushes the coordinates by
-    -h F, h = g but on the motor, where the gap's force arrives as K F / eta."""
-    coords = [A.X_THETA]
-    coords += [A.X_XN] if p[A.P_COMPLIANCE] else []
-    coords += [A.X_XH] if p[A.P_ANCHORAGE] else []
-    coords += [A.X_XL]
-    coords += [A.X_DISK] if p[A.P_SHAFT] else []
-    masses = {A.X_THETA: A.P_J, A.X_XN: A.P_MN, A.X_XH: A.P_MH, A.X_XL: A.P_ML, A.X_DISK: A.P_JD}
-    n = len(coords)
-    stiffness, damping = np.zeros((n, n)), np.zeros((n, n))
 
-    def vector(weights: dict[int, float]) -> np.ndarray:
-        g = np.zeros(n)
-        for coord, weight in weights.items():
-            g[coords.index(coord)] += weight
-        return g
+def _readings(setup, p: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(id, iq, motor speed, fed-back position): the noiseless readings the loops close on."""
+    meas = np.zeros(N_MEAS)
+    true_values(x, p, meas)
+    position = fed_back_position(meas, p, setup.feedback, setup.rudder_to_rod)
+    return np.array([meas[M_ID], meas[M_IQ], meas[M_SPEED], position])
 
-    def element(k: float, c: float, across: dict, on_motor: float = 1.0) -> None:
-        g = vector(across)
-        h = g.copy()
-        h[0] *= on_motor
-        stiffness[:] += k * np.outer(h, g)
-        damping[:] += c * np.outer(h, g)
 
-    k, far = p[A.P_K], A.X_XN if p[A.P_COMPLIANCE] else A.X_XL
-    nut = {A.X_THETA: k, far: -1.0} | ({A.X_XH: 1.0} if p[A.P_ANCHORAGE] else {})
-    element(p[A.P_KB], p[A.P_CB], nut, on_motor=1.0 / p[A.P_ETA])
-    element(0.0, p[A.P_B], {A.X_THETA: 1.0})
-    element(0.0, p[A.P_CL], {A.X_XL: 1.0})
-    if p[A.P_COMPLIANCE]:
-        element(p[A.P_KS], p[A.P_CS], {A.X_XN: 1.0, A.X_XL: -1.0})
-    if p[A.P_ANCHORAGE]:
-        element(p[A.P_KA], p[A.P_CA], {A.X_XH: 1.0})
-    if p[A.P_SHAFT]:
-        element(p[A.P_KT], p[A.P_CT], {A.X_XL: 1.0 / p[A.P_ARM], A.X_DISK: -1.0})
-    rigid = np.array(
-        [{A.X_THETA: 1.0, A.X_XH: 0.0, A.X_DISK: k / p[A.P_ARM]}.get(i, k) for i in coords]
+def _difference(function, z0, steps, names: list[str], rows: list[str]) -> np.ndarray:
+    """d function / dz at z0 by central differences (steps per entry of z, named ``names``; the
+    function's values named ``rows``). Where the difference grows by CONTINUITY at a tenth of
+    the step (a jump, not a slope), the one-sided difference on the side that does not jump
+    (the slope of the branch z0 lies on); InputError where both sides jump."""
+
+    def slope(i, step, side):
+        e = np.zeros_like(z0)
+        e[i] = step
+        ahead = function(z0 + e) if side >= 0 else function(z0)
+        behind = function(z0 - e) if side <= 0 else function(z0)
+        return (ahead - behind) / (step * (2.0 if side == 0 else 1.0))
+
+    def jumps(coarse, fine):
+        # a jump J gives J / h, ten times more at a tenth of the step; round-off, far less
+        return np.abs(fine) > 0.5 * CONTINUITY * np.abs(coarse) + 1e-6 * np.max(np.abs(fine))
+
+    columns = []
+    for i, h in enumerate(steps):
+        for side in (0, 1, -1):
+            coarse, fine = slope(i, h, side), slope(i, 0.1 * h, side)
+            jumped = jumps(coarse, fine)
+            if not np.any(jumped):
+                columns.append(coarse)
+                break
+            if side == 0:
+                worst = rows[int(np.argmax(jumped))]
+        else:
+            raise InputError(
+                f"linearize: the plant is not continuous at the operating point in "
+                f"{names[i]} (d {worst}); drop friction (friction=False) or choose "
+                "another operating point (at_s)"
+            )
+    return np.column_stack(columns)
+
+
+def _steps(x: np.ndarray, states: list[int]) -> np.ndarray:
+    atol = np.asarray(A.PLANT.atol())[states]
+    return np.maximum(STEP_TOLERANCES * atol, 1e-6 * np.abs(x[states]))
+
+
+def _jacobians(setup, p, x0, u0, t0, states):
+    """(A, B over (vd, vq), C of the readings) at (x0, u0) and the loads at t0, over the
+    moving ``states``."""
+    inputs0 = np.concatenate([u0, _loads(setup, t0)])
+
+    def at(z):
+        x = x0.copy()
+        x[states] = z
+        return x
+
+    names = [A.STATE_NAMES[i] for i in states]
+    z0, steps = x0[states], _steps(x0, states)
+    a = _difference(lambda z: _rates(p, at(z), inputs0)[states], z0, steps, names, names)
+    b = _difference(
+        lambda v: _rates(p, x0, np.concatenate([v, inputs0[2:]]))[states],
+        np.asarray(u0, dtype=float),
+        np.full(2, 1e-3),
+        ["vd", "vq"],
+        names,
     )
-    return coords, np.array([p[masses[i]] for i in coords]), stiffness, damping, rigid
+    c = _difference(lambda z: _readings(setup, p, at(z)), z0, steps, names, list(READINGS))
+    return a, b, c
+
+
+def _moving(p: np.ndarray) -> list[int]:
+    """The states the plant integrates, but an absent element's (held at zero) and the
+    bristle state of dropped friction (it neither moves nor acts)."""
+    present = A.PLANT.present_elements(p)
+    idle = {A.X_Z} if p[A.P_FRICTION] == fr.FRICTION_NONE else set()
+    indices = (
+        A.PLANT.states.index(s.name)
+        for e in A.PLANT.elements
+        if e.name in present
+        for s in e.states
+    )
+    return [i for i in indices if i < A.active_states(p) and i not in idle]
+
+
+def _rigid_motion(a: np.ndarray, states: list[int]) -> np.ndarray:
+    """The rigid motion r (A r = 0) with the motor angle's entry 1: every node moved with the
+    rotor, no spring deflected."""
+    theta = states.index(A.X_THETA)
+    rest = [i for i in range(len(states)) if i != theta]
+    r = np.zeros(len(states))
+    r[theta] = 1.0
+    r[rest] = np.linalg.lstsq(a[:, rest], -a[:, theta], rcond=None)[0]
+    if np.linalg.norm(a @ r) > 1e-9 * np.linalg.norm(a[:, theta]) + 1e-300:
+        raise InputError("linearize: the plant has no rigid motion with the rotor to run at speed")
+    return r
+
+
+def _operating_point(setup, p, w0: float) -> tuple[np.ndarray, np.ndarray]:
+    """The steady state at motor speed w0 with id = 0 (module docstring): (x0, (vd, vq))."""
+    states = _moving(p)
+    x0 = setup.x0.copy()
+    x0[states] = 0.0
+    if w0 == 0.0 and not np.any(_loads(setup, 0.0)) and not np.any(_rates(p, x0, np.zeros(5))):
+        return x0, np.zeros(2)
+    a, _, _ = _jacobians(setup, p, x0, np.zeros(2), 0.0, states)
+    r = _rigid_motion(a, states)
+    fixed = {A.X_THETA, A.X_WM, A.X_ID}
+    free = [k for k, i in enumerate(states) if i not in fixed]
+    steady = [k for k, i in enumerate(states) if i != A.X_THETA]
+    loads = _loads(setup, 0.0)
+
+    def state(y):
+        x = x0.copy()
+        x[A.X_WM] = w0
+        x[[states[k] for k in free]] = y[:-2]
+        return x
+
+    def residual(y):
+        x = state(y)
+        dx = _rates(p, x, np.concatenate([y[-2:], loads]))[states]
+        return (dx - r * w0)[steady]
+
+    # unknowns scaled by a million integration tolerances (a micrometre of deflection) and a
+    # volt: hybr's steps are relative, and the deflections are a thousandth of the speeds
+    scale = np.concatenate([1e6 * np.asarray(A.PLANT.atol())[[states[k] for k in free]], [1, 1]])
+    solution = optimize.root(
+        residual, np.zeros(len(free) + 2), method="hybr", options={"xtol": 1e-13, "diag": 1 / scale}
+    )
+    if not solution.success or np.max(np.abs(residual(solution.x))) > 1e-6:
+        raise InputError(
+            f"linearize: no steady state found at {w0 / RPM:g} rpm ({solution.message.strip()}); "
+            "linearise about the run's state with at_s"
+        )
+    return state(solution.x), solution.x[-2:]
+
+
+def _state_at(setup, at_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The run's state at ``at_s`` and the voltages applied then."""
+    run = EngineRun(setup)
+    run.advance(round(at_s / setup.sample_period_s))
+    return run.x.copy(), np.array(run.run.data.drive[[D_UD, D_UQ]])
+
+
+def _plant(setup, p, x0, u0, t0, position: bool) -> control.StateSpace:
+    """The plant linearised at (x0, u0) and the loads at t0: inputs (vd, vq), outputs (id,
+    iq, motor speed, and in a position loop the fed-back position); a speed loop's states
+    less the rigid motion."""
+    states = _moving(p)
+    a, b, c = _jacobians(setup, p, x0, u0, t0, states)
+    names = [A.STATE_NAMES[i] for i in states]
+    if not position:  # z = x - r theta (theta dropped): A r = 0, so dz/dt = (I - r e_theta) A P z
+        theta = states.index(A.X_THETA)
+        r = _rigid_motion(a, states)
+        keep = [i for i in range(len(states)) if i != theta]
+        project = (np.eye(len(states)) - np.outer(r, np.eye(len(states))[theta]))[keep]
+        a, b, c = project @ a[:, keep], project @ b, c[:3][:, keep]
+        names = [f"{names[i]}_less_rigid" if r[i] else names[i] for i in keep]
+    outputs = list(READINGS[: c.shape[0]])
+    return control.ss(a, b, c, 0, inputs=["vd", "vq"], outputs=outputs, states=names, name="plant")
 
 
 def _current_loop(params: np.ndarray, w0: float, iq0: float) -> control.StateSpace:
@@ -291,7 +433,7 @@ def _current_loop(params: np.ndarray, w0: float, iq0: float) -> control.StateSpa
         b,
         np.eye(2),
         d,
-        inputs=["iq_ref", "id", "iq", "motor_speed"],
+        inputs=["iq_ref", "id_A", "iq_A", "motor_speed_rad_s"],
         outputs=["ud", "uq"],
         states=["integral_d", "integral_q"],
         name="current_pi",

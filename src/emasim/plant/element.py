@@ -70,6 +70,10 @@ def two_body_rate(stiffness: float, m1: float, m2: float = math.inf) -> float:
 
 
 GROUND = "ground"  # the node that never moves
+# how far a closed gap's contact overlaps (m or rad; Element.closed): it loads the contact so
+# that its damping limit |c dv| <= k |dx| (emasim.plant.elements.backlash) stays beyond a
+# small signal's velocity, while its force k * 1e-9 (0.15 N on sea805) changes no slope
+CLOSED_OVERLAP = 1e-9
 RK4_OSCILLATOR_LIMIT = 2.0 * math.sqrt(2.0)  # RK4 is stable for omega h below this (imaginary axis)
 RK4_DECAY_LIMIT = 2.78  # and for lambda h below this (negative real axis)
 
@@ -209,6 +213,9 @@ class Element:
     reflected: Callable = field(default=lambda plant: (0.0, 0.0), compare=False)
     stage: str | None = None  # the ablation stage that takes the element out
     removed: Callable = field(default=lambda plant: {}, compare=False)
+    # parameter -> value that closes the element's play for a small-signal model
+    # (emasim.linear, gaps="closed"): its contact kept loaded by CLOSED_OVERLAP
+    closed: tuple[tuple[str, float], ...] = ()
 
 
 class Layout:

@@ -21,7 +21,16 @@ import math
 from collections.abc import Callable
 
 from ..jit import njit
-from .element import RK4_OSCILLATOR_LIMIT, Body, Coupling, Element, Quantity, State, two_body_rate
+from .element import (
+    CLOSED_OVERLAP,
+    RK4_OSCILLATOR_LIMIT,
+    Body,
+    Coupling,
+    Element,
+    Quantity,
+    State,
+    two_body_rate,
+)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -87,5 +96,6 @@ def spring_damper(
             at_rod(plant) if at_rod else 0.0,
         ),
         stage=stage,
+        closed=() if play is None else ((play.name, -CLOSED_OVERLAP),),
         **extra,
     )

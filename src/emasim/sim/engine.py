@@ -119,6 +119,18 @@ def _law_failed(drive, slot):
     return np.nan, np.nan, np.nan, np.nan, np.nan
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def fed_back_position(meas, p, feedback, rudder_to_rod):
+    """The position the loop closes on (m, FEEDBACK_*): the rod sensor's reading, the rod
+    position the rigid kinematics give for the rudder encoder's angle, or the motor encoder's
+    angle as the nut's travel K theta_m."""
+    if feedback == FEEDBACK_RUDDER:
+        return signal_value(rudder_to_rod, meas[M_RUDDER])
+    if feedback == FEEDBACK_MOTOR:
+        return p[A.P_K] * meas[M_ANGLE]
+    return meas[M_POSITION]
+
+
 @njit(cache=True, error_model="numpy")
 def control_tick(t, tick, model, data, laws):
     """One control sample: read the sensors, run the slots that close (position, speed, then
@@ -139,10 +151,7 @@ def control_tick(t, tick, model, data, laws):
     ts = timing.sample_period_s
     params, states = model.slot_params, data.slot_states
     measure(data.x, p, model.sensor_table, data.sensor_state, meas, tick)
-    if timing.feedback == FEEDBACK_RUDDER:
-        meas[M_POSITION] = signal_value(model.rudder_to_rod, meas[M_RUDDER])
-    elif timing.feedback == FEEDBACK_MOTOR:
-        meas[M_POSITION] = p[A.P_K] * meas[M_ANGLE]
+    meas[M_POSITION] = fed_back_position(meas, p, timing.feedback, model.rudder_to_rod)
     flags = 0
     r, dr, ddr = signal_derivatives(model.reference, t)
     position_ref = np.nan

@@ -22,6 +22,7 @@ Play operator (position form), for a position read through a gap of half-width b
 from ...config import MM
 from ...jit import njit
 from ..element import (
+    CLOSED_OVERLAP,
     RK4_OSCILLATOR_LIMIT,
     Coupling,
     Element,
@@ -94,6 +95,7 @@ BACKLASH = Element(
         ),
     ),
     after="transmission",
+    closed=(("backlash_half_gap_m", -CLOSED_OVERLAP),),
     section="backlash",
     pack=lambda plant: _pack(plant),
     modes=lambda value, mass: [
