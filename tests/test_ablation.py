@@ -12,7 +12,7 @@ import pytest
 
 from emasim.analysis.paper_report import ablation_rows, paper_results, write_report
 from emasim.experiments.ablation import STAGES, ablation, stage_scenarios
-from emasim.output import json_text
+from emasim.jsonio import json_text
 from emasim.plant.presets import bench_digital_sensors, bench_sensors
 from emasim.scenarios.loader import load_scenario
 

@@ -21,6 +21,9 @@ BASE = {
     "numerics",
     "signals",
     "output",
+    "naming",
+    "jsonio",
+    "manifest",
     "numba_cache",
     "version",
 }

@@ -16,6 +16,9 @@ from pathlib import Path
 
 import pytest
 
+from emasim import output
+from emasim.jsonio import json_text
+from emasim.naming import fresh_folder
 from emasim.output import (
     JOURNAL,
     MARKER,
@@ -23,9 +26,7 @@ from emasim.output import (
     check_folder,
     clean_leftovers,
     foreign_files,
-    fresh_folder,
     is_emasim_folder,
-    json_text,
     new_file,
     remove_own,
     write_file,
@@ -112,11 +113,16 @@ def test_leftovers_of_dead_processes_and_only_those_are_removed(tmp_path):
     similar.mkdir()
     empty = tmp_path / f".run.tmp-{pid}-0000beef"  # killed before its marker: nothing inside
     empty.mkdir()
-    bare = tmp_path / f".plant.fmu.tmp-{pid}-abcdef12.fmu"  # our pattern, but a bare file
+    bare = tmp_path / f".plant.fmu.tmp-{pid}-abcdef12.fmu"  # an earlier pattern, a bare file
     bare.write_text("a user's, for all emasim can tell")
-    assert sorted(clean_leftovers(tmp_path)) == sorted([ours, ours_old, empty])
+    bare_now = tmp_path / f".plant.fmu.tmp-{pid}-abcdef12"  # our pattern, but a bare file
+    bare_now.write_text("a user's, for all emasim can tell")
+    no_process = tmp_path / f".run.tmp-{10**30}-abcdef12"  # no process can have that pid
+    no_process.mkdir()
+    (no_process / MARKER).write_text("{}")
+    assert sorted(clean_leftovers(tmp_path)) == sorted([ours, ours_old, empty, no_process])
     assert (users / "keep.txt").read_text() == "mine" and alive.exists() and similar.exists()
-    assert bare.read_text() == "a user's, for all emasim can tell"
+    assert bare.read_text() == bare_now.read_text() == "a user's, for all emasim can tell"
 
 
 def test_the_next_write_cleans_the_leftovers(tmp_path):
@@ -155,6 +161,80 @@ def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
     assert all("meanwhile" in o or "already" in o for o in outcomes if o != "ok")
     assert is_emasim_folder(target) and (target / "who.txt").read_text().isdigit()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_concurrent_forced_writers_to_one_place_all_succeed_in_turn(tmp_path):
+    """With --force every writer replaces the result the one before it published (they take
+    turns under the parent folder's lock); the last one stands, whole, with no debris."""
+    target = write_folder(tmp_path / "run", fill)
+    start = threading.Barrier(4)
+    failures = []
+
+    def writer(n):
+        def content(tmp):
+            write_new(tmp / "who.txt", str(n))
+            start.wait()
+
+        try:
+            write_folder(target, content, force=True)
+        except OutputError as err:
+            failures.append(str(err))
+
+    threads = [threading.Thread(target=writer, args=(n,)) for n in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert failures == []
+    assert foreign_files(target) == [] and (target / "who.txt").read_text().isdigit()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("force", [False, True])
+def test_a_folder_put_at_the_target_while_building_is_never_replaced(tmp_path, force):
+    target = tmp_path / "run"
+
+    def content(tmp):
+        fill(tmp)
+        target.mkdir()  # a user's, made while emasim builds
+        (target / "thesis.tex").write_text("years of work")
+
+    with pytest.raises(OutputError, match="another process wrote it meanwhile"):
+        write_folder(target, content, force=force)
+    assert os.listdir(target) == ["thesis.tex"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("system", ["renameat2", "rename"])
+def test_the_publishing_rename_replaces_nothing_that_holds_anything(tmp_path, monkeypatch, system):
+    """renameat2(RENAME_NOREPLACE) refuses every name that exists, an empty folder included
+    (write_folder takes an empty folder by removing it first: rmdir removes nothing else).
+    Where the system lacks it, rename(2) of a folder refuses all but an empty folder."""
+    if system == "rename":
+        monkeypatch.setattr(output, "_RENAMEAT2", None)
+    elif output._RENAMEAT2 is None:
+        pytest.skip("no renameat2 here")
+    src = tmp_path / "new"
+    src.mkdir()
+    (src / "a.txt").write_text("new")
+    users = tmp_path / "users"
+    users.mkdir()
+    (users / "thesis.tex").write_text("years of work")
+    (tmp_path / "file.txt").write_text("mine")
+    (tmp_path / "link").symlink_to(users)
+    (tmp_path / "dangling").symlink_to("nowhere")
+    for taken in ("users", "file.txt", "link", "dangling"):
+        assert not output._rename(src, tmp_path / taken)
+    (tmp_path / "empty").mkdir()
+    assert output._rename(src, tmp_path / "empty") == (system == "rename")
+    assert (users / "thesis.tex").read_text() == "years of work"
+    assert (tmp_path / "file.txt").read_text() == "mine"
+    assert os.readlink(tmp_path / "link") == str(users)
+    assert os.readlink(tmp_path / "dangling") == "nowhere"
+    target = write_folder(tmp_path / "run", fill)  # and a whole write, on either system
+    assert is_emasim_folder(target)
+    write_folder(target, fill, force=True)
+    assert foreign_files(target) == [] and not [p for p in tmp_path.iterdir() if ".tmp-" in p.name]
 
 
 def test_concurrent_writers_to_fresh_names_all_succeed(tmp_path):
@@ -200,6 +280,36 @@ def test_files_follow_the_same_rules(tmp_path):
         write_file(users, "x", force=True, is_ours=lambda p: False, what="x")
     assert users.read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.toml", "tuned.toml"]
+
+
+def test_force_checks_a_file_again_just_before_replacing_it(tmp_path, monkeypatch):
+    """A file that a user saved over emasim's while emasim worked (a tuning takes minutes) is
+    the user's: --force checks it again under the lock, and refuses. Without --force a file
+    that appears meanwhile is never replaced (the new file is hard-linked into place)."""
+    ours = tmp_path / "tuned.toml"
+    is_ours = lambda p: p.read_text().startswith("# emasim")  # noqa: E731
+    write_file(ours, "# emasim\n", is_ours=is_ours, what="--save")
+    real_locked = output.locked
+
+    def user_saves_then_lock(folder):
+        ours.write_text("mine")
+        return real_locked(folder)
+
+    monkeypatch.setattr(output, "locked", user_saves_then_lock)
+    with pytest.raises(OutputError, match="emasim did not write it"):
+        write_file(ours, "# emasim 2\n", force=True, is_ours=is_ours, what="--save")
+    assert ours.read_text() == "mine"
+    fresh = tmp_path / "fresh.toml"
+
+    def appears_then_lock(folder):
+        fresh.write_text("theirs")
+        return real_locked(folder)
+
+    monkeypatch.setattr(output, "locked", appears_then_lock)
+    with pytest.raises(OutputError, match="meanwhile"):
+        write_file(fresh, "# emasim\n", is_ours=is_ours, what="--save")
+    assert fresh.read_text() == "theirs"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh.toml", "tuned.toml"]
 
 
 def test_a_folder_that_cannot_be_written_is_one_error(tmp_path):
@@ -300,23 +410,46 @@ def test_removal_deletes_only_the_manifests_files_never_through_a_link(tmp_path)
     assert not (folder / "a.txt").exists() and not (folder / MARKER).exists()
 
 
-def test_a_file_put_into_a_replaced_result_at_the_last_moment_is_kept(tmp_path, monkeypatch):
-    """--force checks for foreign files, then moves the old result aside and removes it: a
-    file that appears between the two stays in the moved-aside folder."""
-    target = write_folder(tmp_path / "run", fill)
-    real_rename = Path.rename
+def test_a_file_put_into_a_result_as_force_moves_it_aside_puts_it_back(tmp_path, monkeypatch):
+    """--force moves the old result aside, then checks it against its manifest: a file that
+    appears in it at that moment makes the check refuse, and the old result is put back in
+    place with the file."""
+    target = write_folder(tmp_path / "run", lambda tmp: write_new(tmp / "a.txt", "first"))
+    real_rename = output._rename
 
-    def rename_then_add(self, other):
-        moved = real_rename(self, other)
-        if ".old-" in Path(other).name:
-            (Path(other) / "late.txt").write_text("keep")
+    def rename_then_add(src, dst):
+        moved = real_rename(src, dst)
+        if ".old-" in Path(dst).name:
+            (Path(dst) / "late.txt").write_text("keep")
         return moved
 
-    monkeypatch.setattr(Path, "rename", rename_then_add)
+    monkeypatch.setattr(output, "_rename", rename_then_add)
+    with pytest.raises(OutputError, match="late.txt"):
+        write_folder(target, fill, force=True)
+    assert (target / "late.txt").read_text() == "keep"
+    assert (target / "a.txt").read_text() == "first" and foreign_files(target) == ["late.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_a_file_put_into_a_replaced_result_at_the_last_moment_is_kept(tmp_path, monkeypatch):
+    """After the check, the new result is renamed into place and the old one, aside, loses its
+    manifest's files only: a file that appears in it between the two stays, with its folder."""
+    target = write_folder(tmp_path / "run", fill)
+    real_rename = output._rename
+
+    def rename_then_add(src, dst):
+        moved = real_rename(src, dst)
+        if ".tmp-" in Path(src).name:  # the new result is in place; the old one is aside
+            [old] = [p for p in tmp_path.iterdir() if ".old-" in p.name]
+            (old / "late.txt").write_text("keep")
+        return moved
+
+    monkeypatch.setattr(output, "_rename", rename_then_add)
     write_folder(target, fill, force=True)
     (kept,) = [p for p in tmp_path.iterdir() if ".old-" in p.name]
+    assert sorted(p.name for p in kept.iterdir()) == ["late.txt"]
     assert (kept / "late.txt").read_text() == "keep"
-    assert is_emasim_folder(target)
+    assert is_emasim_folder(target) and foreign_files(target) == []
 
 
 def test_a_file_put_into_a_folder_being_built_survives_a_failed_write(tmp_path):

@@ -25,7 +25,7 @@ from emasim.experiments.verdict_map import (
     spec_for,
     verdict_map,
 )
-from emasim.output import finite_or_none
+from emasim.jsonio import finite_or_none
 from emasim.plant.presets import ttl_rudder_encoder
 from emasim.scenarios.loader import load_scenario
 

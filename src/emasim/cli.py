@@ -447,7 +447,8 @@ def tune(
     sits on its bound; resumable (a study is keyed by the fully resolved scenario); writes the
     scenario with the tuned gains and a record of each set's search."""
     from .experiments.batch import check_scheduler, dask_client
-    from .output import RUNS_ROOT, check_file, fresh_file, slug, write_file
+    from .naming import RUNS_ROOT, fresh_file, slug
+    from .output import check_file, write_file
     from .scenarios.loader import (
         apply_controller_choice,
         apply_setting,

@@ -20,3 +20,8 @@ class LawFailed(SimulationDiverged):
 class DamagedResult(EmasimError):
     """A saved result cannot be read back whole: a file is missing, truncated, changed since
     emasim wrote it, or not emasim's; the message names the file and what is wrong."""
+
+
+class OutputError(EmasimError):
+    """A target cannot be written without losing someone's data, or cannot be written at all
+    (emasim.output's rules)."""

@@ -146,9 +146,9 @@ def _creating(path: Path):
     """Hold the lock on ``path``'s folder while the SQLite database there is checked and its
     tables made: two tunings that first use a new storage at once would both create them
     ("table ... already exists"); the second waits, then finds them."""
-    from .output import _locked
+    from .output import locked
 
-    return _locked(path.parent)
+    return locked(path.parent)
 
 
 def _rdb_storage(url: str):

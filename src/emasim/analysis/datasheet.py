@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..output import json_text, write_new
+from ..jsonio import json_text
+from ..output import write_new
 from . import frequency as fr
 from .plots import save_figure
 from .units import unit_of

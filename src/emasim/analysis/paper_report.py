@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..output import json_text, write_new
+from ..jsonio import json_text
+from ..output import write_new
 from ..version import __version__
 from .judged import (
     ABLATED_TABLES,

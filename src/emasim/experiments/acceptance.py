@@ -427,7 +427,8 @@ class Acceptance:
         runs/acceptance/SCENARIO-TIME), atomically and never over anything emasim did not
         write; return where."""
         from ..analysis.datasheet import write_datasheet
-        from ..output import RUNS_ROOT, fresh_folder, write_folder
+        from ..naming import RUNS_ROOT, fresh_folder
+        from ..output import write_folder
 
         unique = folder is None
         if unique:

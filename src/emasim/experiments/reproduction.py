@@ -21,7 +21,8 @@ from ..analysis.paper_report import (
 )
 from ..config import hard_limits
 from ..errors import InputError
-from ..output import RUNS_ROOT, check_folder, fresh_folder, write_folder
+from ..naming import RUNS_ROOT, fresh_folder
+from ..output import check_folder, write_folder
 from ..scenarios.loader import load_scenario
 from . import verdict_map, wear
 from .ablation import STAGES, ablation_jobs, ablation_table

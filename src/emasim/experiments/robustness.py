@@ -41,7 +41,7 @@ from ..analysis.judged import (
     INDUSTRIAL_LABEL,
     PID_LABEL,
 )
-from ..output import RUNS_ROOT
+from ..naming import RUNS_ROOT
 from .study import OK, StudySpec, read_table, run_study
 from .uncertainty import COLUMNS, SEED, UNCERTAINTY
 

@@ -47,17 +47,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import EmasimError, InputError, SimulationDiverged
-from ..output import (
-    OutputError,
-    check_folder,
-    is_emasim_folder,
-    json_text,
-    slug,
-    write_file,
-    write_folder,
-    write_new,
-)
+from ..errors import EmasimError, InputError, OutputError, SimulationDiverged
+from ..jsonio import json_text
+from ..naming import slug
+from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
 from ..scenarios.loader import apply_setting, read_scenario_file, set_key, validate_scenario
 from .variation import Variation, parse_variation, samples
 

@@ -19,7 +19,7 @@ from ..control.current import CurrentPI
 from ..control.pid import SpeedPI
 from ..control.registry import CASCADES, PositionController, SpeedController
 from ..interface import MEASUREMENT_NAMES as MEASUREMENT_CHANNELS
-from ..output import slug
+from ..naming import slug
 from ..plant import actuator as A
 from ..plant.elements.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict

@@ -24,16 +24,10 @@ import pyarrow.parquet as pq
 import tomli_w
 
 from ..errors import DamagedResult, InputError
-from ..output import (
-    RUNS_ROOT,
-    fresh_folder,
-    json_text,
-    new_file,
-    slug,
-    verify_files,
-    write_folder,
-    write_new,
-)
+from ..jsonio import json_text
+from ..manifest import verify_files
+from ..naming import RUNS_ROOT, fresh_folder, slug
+from ..output import new_file, write_folder, write_new
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -206,7 +200,7 @@ class Result:
         """Read a run folder written by :meth:`save` (its traces in any of TRACE_FORMATS).
 
         Every file read must be the one emasim wrote, whole (its size and SHA-256 in the
-        folder's manifest, :func:`emasim.output.verify_files`), and the traces must hold the
+        folder's manifest, :func:`emasim.manifest.verify_files`), and the traces must hold the
         rows and columns meta.json counts; anything else raises
         :class:`emasim.errors.DamagedResult` naming the file."""
         folder = Path(folder)
