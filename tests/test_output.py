@@ -134,11 +134,10 @@ def test_the_next_write_cleans_the_leftovers(tmp_path):
     assert not leftover.exists()
 
 
-def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
-    """Eight threads race to one target without force: exactly one wins, the others are
-    refused with an OutputError, and the folder is complete."""
-    target = tmp_path / "run"
-    start = threading.Barrier(8)
+def race(target: Path, writers: int, force: bool) -> list[str]:
+    """``writers`` threads write ``target`` at once (each its number in who.txt, all held at a
+    barrier inside the build): "ok" or the OutputError's message of each."""
+    start = threading.Barrier(writers)
     outcomes = []
 
     def writer(n):
@@ -147,16 +146,24 @@ def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
             start.wait()
 
         try:
-            write_folder(target, content)
+            write_folder(target, content, force=force)
             outcomes.append("ok")
         except OutputError as err:
             outcomes.append(str(err))
 
-    threads = [threading.Thread(target=writer, args=(n,)) for n in range(8)]
+    threads = [threading.Thread(target=writer, args=(n,)) for n in range(writers)]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join()
+    return outcomes
+
+
+def test_concurrent_writers_to_one_place_never_both_lose(tmp_path):
+    """Eight threads race to one target without force: exactly one wins, the others are
+    refused with an OutputError, and the folder is complete."""
+    target = tmp_path / "run"
+    outcomes = race(target, 8, force=False)
     assert outcomes.count("ok") == 1
     assert all("meanwhile" in o or "already" in o for o in outcomes if o != "ok")
     assert is_emasim_folder(target) and (target / "who.txt").read_text().isdigit()
@@ -167,25 +174,7 @@ def test_concurrent_forced_writers_to_one_place_all_succeed_in_turn(tmp_path):
     """With --force every writer replaces the result the one before it published (they take
     turns under the parent folder's lock); the last one stands, whole, with no debris."""
     target = write_folder(tmp_path / "run", fill)
-    start = threading.Barrier(4)
-    failures = []
-
-    def writer(n):
-        def content(tmp):
-            write_new(tmp / "who.txt", str(n))
-            start.wait()
-
-        try:
-            write_folder(target, content, force=True)
-        except OutputError as err:
-            failures.append(str(err))
-
-    threads = [threading.Thread(target=writer, args=(n,)) for n in range(4)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join()
-    assert failures == []
+    assert race(target, 4, force=True) == ["ok"] * 4
     assert foreign_files(target) == [] and (target / "who.txt").read_text().isdigit()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
 
