@@ -185,6 +185,41 @@ def test_on_the_lumped_stage_rudder_feedback_is_rod_feedback():
     np.testing.assert_allclose(ratio, 1.0, atol=1e-6)
 
 
+DISCRETE_CASES = {  # position loops without feed-forward (discrete=True refuses one)
+    "pid-rod": ("position-step", *POSITION_CASES["pid-rod"]),
+    "pid-elements-rod": ("position-step", *POSITION_CASES["pid-elements-rod"]),
+    "speed-pi": ("speed-step", ["speed=pi"], []),
+}
+DISCRETE_DB, DISCRETE_DEG = 0.05, 0.1  # twice and ten times tighter than the continuous
+
+
+@pytest.mark.parametrize("case", DISCRETE_CASES)
+def test_the_discrete_loop_is_the_simulations_tick(case):
+    """discrete=True differentiates one tick of the compiled loop itself (its laws, delay and
+    RK4 sub-steps): at the control rate it matches the stepped-sine simulation within
+    DISCRETE_DB and DISCRETE_DEG up to the bandwidth (the continuous model, with its Pade delay
+    and continuous laws, within GAIN_DB and PHASE_DEG); its poles lie inside the unit circle
+    and it tracks at DC."""
+    name, controllers, settings = DISCRETE_CASES[case]
+    s = scenario(name, controllers, settings)
+    model = linearize(s, discrete=True)
+    assert model.dt == s.solver.sample_period_s
+    assert control.dcgain(model) == pytest.approx(1.0, abs=1e-6)
+    assert np.all(np.abs(model.poles()) < 1.0)
+    frequencies = up_to_bandwidth(linearize(s))
+    rows = errors(model, name, controllers, settings, frequencies)
+    bad = [r for r in rows if abs(r[1]) > DISCRETE_DB or abs(r[2]) > DISCRETE_DEG]
+    assert not bad, f"simulation against the discrete model: {rows}"
+
+
+def test_the_discrete_loop_refuses_a_feed_forward_and_other_loops():
+    s = scenario("position-step", ["position=pid", "speed=pi"], [])  # velocity feed-forward on
+    with pytest.raises(InputError, match="feed-forward reads them"):
+        linearize(s, discrete=True)
+    with pytest.raises(InputError, match="closed loop only"):
+        linearize(s, discrete=True, loop="open")
+
+
 OPEN_LOOP_CASES = {  # laws on the error alone, no feed-forward: then T = L / (1 + L)
     "position-pid-on-error": ("position-step", *POSITION_CASES["pid-derivative-on-error"]),
     "speed-pi": ("speed-step", ["speed=pi"], []),

@@ -60,6 +60,13 @@ reading the plant gives, the reference zero, so that the closed loop is L / (1 +
 ``control.stability_margins(L)`` gives the loop's margins), or "plant" ((vd, vq) -> (id, iq,
 motor speed, fed-back position); its inputs named vd and vq, in V).
 
+``discrete=True`` gives the closed loop at the control rate instead, exactly as the engine
+runs it: the Jacobian of one tick of the compiled loop (emasim.sim.engine.run_ticks: the laws
+as compiled, the computation delay, the RK4 sub-steps) in the plant's moving states, the
+slots' states and the voltage still applied during the delay, and in the reference's value
+(:func:`_tick_map`). The reference's rates are not an input of that map, so a loop with a
+feed-forward is refused there.
+
 Not modelled: the current, speed and voltage limits and anti-windup (none acts on a small
 signal at an operating point inside them), sensor imperfections (ideal, sampled at every
 tick). Refused with InputError: controllers without a linear form (anything but position
@@ -80,11 +87,11 @@ from .errors import InputError
 from .interface import M_ID, M_IQ, M_SPEED, N_MEAS
 from .plant import actuator as A
 from .plant.elements import friction as fr
-from .plant.sensors import true_values
+from .plant.sensors import ideal_table, true_values
 from .scenarios.schema import Scenario
-from .signals import signal_value
+from .signals import KIND_CONSTANT, signal_value
 from .sim.core import D_UD, D_UQ
-from .sim.engine import EngineRun, fed_back_position
+from .sim.engine import EngineRun, fed_back_position, run_ticks
 from .sim.setup import plant_facts
 
 PADE_ORDER = 3  # of the delay's approximant: within 1e-5 rad of its phase up to 1 / (Td + Ts/2)
@@ -103,6 +110,7 @@ def linearize(
     gaps: str = "closed",
     friction: bool = False,
     loop: str = "closed",
+    discrete: bool = False,
 ) -> control.StateSpace:
     """The loop of ``scenario`` as a continuous-time state-space model (module docstring).
 
@@ -114,6 +122,7 @@ def linearize(
     gaps : "closed" (each play closed, in loaded contact) or "as is".
     friction : linearise the friction at the operating point (default: dropped).
     loop : "closed", "open" or "plant".
+    discrete : the closed loop at the control rate instead (:func:`_tick_map`).
 
     Returns
     -------
@@ -130,6 +139,8 @@ def linearize(
     not continuous at the operating point.
     """
     _refuse(scenario, gaps, loop, at_s)
+    if discrete:
+        _refuse_discrete(scenario, loop)
     setup = scenario.setup()
     p = _small_signal_plant(setup.plant, gaps, friction)
     position = scenario.controllers.position is not None
@@ -141,6 +152,8 @@ def linearize(
         if at_s is None
         else _state_at(setup, at_s)
     )
+    if discrete:
+        return _tick_map(scenario, setup, p, x0, at_s)
     plant = _plant(setup, p, x0, u0, t0, position)
     if loop == "plant":
         return plant
@@ -226,6 +239,23 @@ def _refuse(scenario: Scenario, gaps: str, loop: str, at_s: float | None) -> Non
             f"linearize: the position controller '{c.position.name}' has no linear form; "
             "use position=pid or position=pi"
         )
+
+
+def _refuse_discrete(scenario: Scenario, loop: str) -> None:
+    """InputError for what the tick's Jacobian does not give: another loop than the closed
+    one, and a feed-forward, which reads the reference's rates (not an input of the map)."""
+    if loop != "closed":
+        raise InputError(f"linearize: discrete=True gives the closed loop only, got loop={loop!r}")
+    facts, ts = plant_facts(scenario.plant), scenario.solver.sample_period_s
+    c = scenario.controllers
+    laws = [("speed", c.speed)] + ([("position", c.position)] if c.position else [])
+    for slot, law in laws:
+        if law.build(facts, ts).params[pid.KFF] != 0.0:
+            raise InputError(
+                f"linearize: discrete=True leaves the reference's rates out, and the {slot} "
+                f"law's feed-forward reads them; turn it off (controllers.{slot}) or use the "
+                "continuous model"
+            )
 
 
 def _small_signal_plant(params: np.ndarray, gaps: str, friction: bool) -> np.ndarray:
@@ -342,17 +372,27 @@ def _moving(p: np.ndarray) -> list[int]:
     return [i for i in indices if i < A.active_states(p) and i not in idle]
 
 
-def _rigid_motion(a: np.ndarray, states: list[int]) -> np.ndarray:
-    """The rigid motion r (A r = 0) with the motor angle's entry 1: every node moved with the
-    rotor, no spring deflected."""
-    theta = states.index(A.X_THETA)
-    rest = [i for i in range(len(states)) if i != theta]
-    r = np.zeros(len(states))
+def _rigid_motion(m: np.ndarray, theta: int) -> np.ndarray:
+    """The rigid motion r (m r = 0: m = A of a continuous model, A - I of a discrete one)
+    with the motor angle's entry (``theta``) 1: every node moved with the rotor, no spring
+    deflected."""
+    rest = [i for i in range(m.shape[0]) if i != theta]
+    r = np.zeros(m.shape[0])
     r[theta] = 1.0
-    r[rest] = np.linalg.lstsq(a[:, rest], -a[:, theta], rcond=None)[0]
-    if np.linalg.norm(a @ r) > 1e-9 * np.linalg.norm(a[:, theta]) + 1e-300:
+    r[rest] = np.linalg.lstsq(m[:, rest], -m[:, theta], rcond=None)[0]
+    if np.linalg.norm(m @ r) > 1e-9 * np.linalg.norm(m[:, theta]) + 1e-300:
         raise InputError("linearize: the plant has no rigid motion with the rotor to run at speed")
     return r
+
+
+def _less_rigid(a, b, c, r, theta: int, names: list[str]):
+    """(A, B, C, names) in the states less the rigid motion, z = x - r theta (theta dropped):
+    r is a motion the model keeps (A r = 0, or A r = r in discrete time), so the new state
+    moves as (I - r e_theta) A P z, P putting theta = 0 back in."""
+    keep = [i for i in range(a.shape[0]) if i != theta]
+    project = (np.eye(a.shape[0]) - np.outer(r, np.eye(a.shape[0])[theta]))[keep]
+    names = [f"{names[i]}_less_rigid" if r[i] else names[i] for i in keep]
+    return project @ a[:, keep], project @ b, c[:, keep], names
 
 
 def _operating_point(setup, p, w0: float) -> tuple[np.ndarray, np.ndarray]:
@@ -363,7 +403,7 @@ def _operating_point(setup, p, w0: float) -> tuple[np.ndarray, np.ndarray]:
     if w0 == 0.0 and not np.any(_loads(setup, 0.0)) and not np.any(_rates(p, x0, np.zeros(5))):
         return x0, np.zeros(2)
     a, _, _ = _jacobians(setup, p, x0, np.zeros(2), 0.0, states)
-    r = _rigid_motion(a, states)
+    r = _rigid_motion(a, states.index(A.X_THETA))
     fixed = {A.X_THETA, A.X_WM, A.X_ID}
     free = [k for k, i in enumerate(states) if i not in fixed]
     steady = [k for k, i in enumerate(states) if i != A.X_THETA]
@@ -408,13 +448,9 @@ def _plant(setup, p, x0, u0, t0, position: bool) -> control.StateSpace:
     states = _moving(p)
     a, b, c = _jacobians(setup, p, x0, u0, t0, states)
     names = [A.STATE_NAMES[i] for i in states]
-    if not position:  # z = x - r theta (theta dropped): A r = 0, so dz/dt = (I - r e_theta) A P z
+    if not position:
         theta = states.index(A.X_THETA)
-        r = _rigid_motion(a, states)
-        keep = [i for i in range(len(states)) if i != theta]
-        project = (np.eye(len(states)) - np.outer(r, np.eye(len(states))[theta]))[keep]
-        a, b, c = project @ a[:, keep], project @ b, c[:3][:, keep]
-        names = [f"{names[i]}_less_rigid" if r[i] else names[i] for i in keep]
+        a, b, c, names = _less_rigid(a, b, c[:3], _rigid_motion(a, theta), theta, names)
     outputs = list(READINGS[: c.shape[0]])
     return control.ss(a, b, c, 0, inputs=["vd", "vq"], outputs=outputs, states=names, name="plant")
 
@@ -503,3 +539,121 @@ def _with_rates(loop: control.StateSpace) -> tuple[np.ndarray, ...]:
         b_total += powers[k] @ b[:, k : k + 1]
         d_total += c @ powers[k - 1] @ b[:, k : k + 1]
     return a, b_total, c, d_total
+
+
+REFERENCE_STEP = {True: 1e-9, False: 1e-6}  # m of a position reference, rad/s of a speed one
+START_TICKS = 2  # ticks run at the operating point before the map is taken (the laws start)
+
+
+def _shifted(signal: np.ndarray, offset: float) -> np.ndarray:
+    """An encoded signal (emasim.signals.encode) plus a constant ``offset``."""
+    return np.concatenate([[signal[0] + 1.0], signal[1:], [KIND_CONSTANT, 1.0, offset]])
+
+
+def _tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
+    """The closed loop at the control rate: the Jacobian of one tick of the compiled loop
+    (emasim.sim.engine.run_ticks: the sensors, the laws as compiled, the drive's limits, the
+    computation delay and the RK4 sub-steps) in the plant's moving states, the slots' states
+    and the voltage still applied during the delay, and in the reference's value.
+
+    The operating point: the run's state at ``at_s``, or the steady state x0 held with the
+    reference at its fed-back value, after START_TICKS ticks there (so that each law has made
+    its first call). A speed loop's states are taken less the rigid motion, as in continuous
+    time. The sensors are ideal; the reference's rates, which feed the
+    feed-forwards, are not an input (its value steps, its rates stay). Laws that do not move
+    or act (a slot's unused entries) are left out."""
+    position = scenario.controllers.position is not None
+    ideal = setup.with_(sensors=ideal_table())
+    if at_s is None:
+        y0 = _readings(setup, p, x0)[3 if position else 2]
+        start = ideal.with_(plant=p, x0=x0, reference=_shifted(np.array([0.0]), y0))
+        k0 = START_TICKS
+    else:
+        start = ideal.with_(plant=p)
+        k0 = max(START_TICKS, round(at_s / setup.sample_period_s))
+    run = EngineRun(start)
+    run.advance(k0)
+    model, data, laws = run.run.model, run.run.data, run.run.laws
+    states = _moving(p)
+    slots = [len(s) for s in data.slot_states]
+    base = np.concatenate([data.x[states], *data.slot_states, data.drive[[D_UD, D_UQ]]])
+
+    def tick(z, offset=0.0):
+        x = data.x.copy()
+        x[states] = z[: len(states)]
+        chunks = np.split(z[len(states) : -2], np.cumsum(slots)[:-1])
+        drive = data.drive.copy()
+        drive[[D_UD, D_UQ]] = z[-2:]
+        trial = data._replace(
+            x=x,
+            slot_states=tuple(c.copy() for c in chunks),
+            drive=drive,
+            sensor_state=data.sensor_state.copy(),
+            status=np.zeros(3, dtype=np.int64),
+        )
+        shifted = model._replace(reference=_shifted(model.reference, offset))
+        run_ticks(k0, k0 + 1, shifted, trial, *laws)
+        return np.concatenate([trial.x[states], *trial.slot_states, trial.drive[[D_UD, D_UQ]]])
+
+    names = [A.STATE_NAMES[i] for i in states]
+    names += [
+        f"{slot}_law_{i}"
+        for slot, n in zip(("position", "speed", "current"), slots, strict=True)
+        for i in range(n)
+    ]
+    names += ["vd_applied", "vq_applied"]
+    steps = np.concatenate([_steps(data.x, states), np.full(len(base) - len(states), 1e-6)])
+    a = _difference(tick, base, steps, names, names)
+    b = _difference(
+        lambda r: tick(base, r[0]),
+        np.zeros(1),
+        np.array([REFERENCE_STEP[position]]),
+        ["reference"],
+        names,
+    )
+    c = np.zeros((1, len(base)))
+    c[0, : len(states)] = _difference(
+        lambda z: _readings(setup, p, _with(data.x, states, z)),
+        data.x[states],
+        steps[: len(states)],
+        names,
+        list(READINGS),
+    )[3 if position else 2]
+    if not position:  # the speed loop never sees where the drive stands
+        theta = states.index(A.X_THETA)
+        r = _rigid_motion(a - np.eye(len(base)), theta)
+        a, b, c, names = _less_rigid(a, b, c, r, theta, names)
+    keep = _acting(a, c)
+    labels = (
+        ("position_ref_m", "measured_position_m")
+        if position
+        else ("speed_ref_rad_s", "motor_speed_rad_s")
+    )
+    return control.ss(
+        a[np.ix_(keep, keep)],
+        b[keep],
+        c[:, keep],
+        0,
+        dt=setup.sample_period_s,
+        inputs=[labels[0]],
+        outputs=[labels[1]],
+        states=[names[i] for i in keep],
+        name=f"{scenario.name}-discrete",
+    )
+
+
+def _with(x: np.ndarray, states: list[int], z: np.ndarray) -> np.ndarray:
+    out = x.copy()
+    out[states] = z
+    return out
+
+
+def _acting(a: np.ndarray, c: np.ndarray) -> list[int]:
+    """The states that act on another state or on the output (the others, a slot's unused
+    entries, only hold or reset themselves)."""
+    keep = list(range(a.shape[0]))
+    while True:
+        others = [i for i in keep if np.any(a[[j for j in keep if j != i], i]) or np.any(c[:, i])]
+        if others == keep:
+            return keep
+        keep = others
