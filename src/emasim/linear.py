@@ -55,10 +55,11 @@ as separate inputs, T_k(s) = C (sI - A)^-1 b_k + d_k, and combined exactly as
 T(s) = sum_k s^k T_k(s) (:func:`_with_rates`).
 
 ``loop`` chooses the model: "closed" (reference -> the fed-back signal), "open" (the loop
-broken at its outermost feedback: L from the fed-back reading the controller gets to the
-reading the plant gives, the reference zero, so that the closed loop is L / (1 + L) and
-``control.stability_margins(L)`` gives the loop's margins), or "plant" ((vd, vq) -> (id, iq,
-motor speed, fed-back position); its inputs named vd and vq, in V).
+broken at a feedback, ``broken_at``: the position or the motor speed, by default the
+outermost: L from the reading the controller gets, ``<reading>_fed_back``, to the reading the
+plant gives, the references zero and any inner loop closed, so that the loop closed there is
+L / (1 + L) and ``control.stability_margins(L)`` gives its margins), or "plant" ((vd, vq) ->
+(id, iq, motor speed, fed-back position); its inputs named vd and vq, in V).
 
 ``discrete=True`` gives the closed loop at the control rate instead, exactly as the engine
 runs it: the Jacobian of one tick of the compiled loop (emasim.sim.engine.run_ticks: the laws
@@ -110,6 +111,7 @@ def linearize(
     gaps: str = "closed",
     friction: bool = False,
     loop: str = "closed",
+    broken_at: str | None = None,
     discrete: bool = False,
 ) -> control.StateSpace:
     """The loop of ``scenario`` as a continuous-time state-space model (module docstring).
@@ -122,6 +124,8 @@ def linearize(
     gaps : "closed" (each play closed, in loaded contact) or "as is".
     friction : linearise the friction at the operating point (default: dropped).
     loop : "closed", "open" or "plant".
+    broken_at : where loop="open" cuts: "position" or "speed" (the inner loop, the outer one
+        closed); default the outermost feedback.
     discrete : the closed loop at the control rate instead (:func:`_tick_map`).
 
     Returns
@@ -139,6 +143,11 @@ def linearize(
     not continuous at the operating point.
     """
     _refuse(scenario, gaps, loop, at_s)
+    if broken_at not in (None, "speed", "position") or (
+        broken_at == "position" and scenario.controllers.position is None
+    ):
+        cuts = "speed or position" if scenario.controllers.position else "speed (no position loop)"
+        raise InputError(f"linearize: broken_at must be {cuts}, got {broken_at!r}")
     if discrete:
         _refuse_discrete(scenario, loop)
     setup = scenario.setup()
@@ -167,14 +176,25 @@ def linearize(
         _delay(delay, "d"),
         _delay(delay, "q"),
     ]
-    speed_in = "motor_speed_fb" if loop == "open" and not position else "motor_speed_rad_s"
+    broken = broken_at or ("position" if position else "speed")  # the feedback loop="open" cuts
+    cut = {"speed": "motor_speed_rad_s", "position": "measured_position_m"}[broken]
+    fed = {
+        name: f"{name}_fed_back" if loop == "open" and name == cut else name for name in READINGS
+    }
     blocks.append(
-        _pid(c.speed.build(facts, ts).params, "speed_ref", speed_in, "iq_ref", "speed_pi")
+        _pid(
+            c.speed.build(facts, ts).params,
+            "speed_ref",
+            fed["motor_speed_rad_s"],
+            "iq_ref",
+            "speed_pi",
+        )
     )
     if position:
         law = c.position.build(facts, ts).params
-        measured = "position_fb" if loop == "open" else "measured_position_m"
-        blocks.append(_pid(law, "position_ref", measured, "speed_ref", "position_pid"))
+        blocks.append(
+            _pid(law, "position_ref", fed["measured_position_m"], "speed_ref", "position_pid")
+        )
         references = ["position_ref", "position_ref_rate", "position_ref_accel"]
         output, labels = "measured_position_m", ("position_ref_m", "measured_position_m")
     else:
@@ -182,9 +202,8 @@ def linearize(
         output, labels = "motor_speed_rad_s", ("speed_ref_rad_s", "motor_speed_rad_s")
     ignore_inputs = ["speed_ref_accel"]  # the engine gives the speed loop no acceleration
     if loop == "open":
-        broken = "position_fb" if position else "motor_speed_fb"
         ignore_inputs += references
-        references = [broken]
+        references, output = [fed[cut]], cut
     closed = control.interconnect(
         blocks,
         inplist=references,
@@ -198,10 +217,10 @@ def linearize(
             closed.B,
             -closed.C,
             -closed.D,
-            inputs=[f"{labels[1]}_fed_back"],
-            outputs=[labels[1]],
+            inputs=[fed[cut]],
+            outputs=[cut],
             states=closed.state_labels,
-            name=f"{scenario.name}-open-loop",
+            name=f"{scenario.name}-open-loop-{broken}",
         )
     return control.ss(
         *_with_rates(closed),
