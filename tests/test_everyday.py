@@ -142,6 +142,24 @@ def test_emasim_run_returns_the_comparison_with_plot_and_save(tmp_path):
         assert (folder / label / "plot.png").exists()  # a plot in every run folder
 
 
+def test_emasim_run_takes_a_name_or_a_path_with_the_command_lines_options(tmp_path):
+    """emasim.run("speed-step", label=..., settings=[...]) reads the scenario as `emasim run`
+    does: the same traces as load_scenario then run; the options with a Scenario are refused in
+    one line; dir(emasim) lists run and linearize before their first use."""
+    by_name = emasim.run("speed-step", label="PI", settings=[SHORT])
+    by_scenario = emasim.run(load_scenario("speed-step", label="PI", settings=[SHORT]))
+    assert isinstance(by_name, Result)
+    np.testing.assert_array_equal(by_name["motor_speed_rad_s"], by_scenario["motor_speed_rad_s"])
+    path = tmp_path / "mine.toml"
+    by_name.save(tmp_path / "run")
+    path.write_text((tmp_path / "run" / "scenario.toml").read_text())
+    again = emasim.run(path)
+    np.testing.assert_array_equal(again["motor_speed_rad_s"], by_name["motor_speed_rad_s"])
+    with pytest.raises(emasim.errors.InputError, match="apply to a scenario's name or path"):
+        emasim.run(load_scenario("speed-step"), label="PI")
+    assert {"run", "linearize", "__version__"} <= set(dir(emasim))
+
+
 @numba.njit(CONTROLLER_SIG)
 def proportional_speed_law(state, params, meas, ref, ts, out):
     out[0] = params[0] * (ref[0] - meas[0])

@@ -10,6 +10,7 @@ compiled sampled-data engine (:mod:`emasim.sim`), the paper's experiments
 from .numba_cache import configure as _configure_numba_cache
 
 NUMBA_CACHE_DIR = _configure_numba_cache()  # keyed by the source: never stale (numba_cache.py)
+__all__ = ["NUMBA_CACHE_DIR", "__version__", "linearize", "run"]  # the loaded-on-use ones too
 
 
 def __getattr__(name: str):
@@ -29,3 +30,9 @@ def __getattr__(name: str):
 
         return run
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The public API (``__all__``) with the module's own names: ``dir(emasim)`` lists ``run``
+    and ``linearize`` before their first use."""
+    return sorted(set(globals()) | set(__all__))

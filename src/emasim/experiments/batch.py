@@ -21,7 +21,7 @@ import logging
 import os
 import socket
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -270,15 +270,30 @@ def _run(scenario, trust_fmu, label):
 
 
 def run(
-    scenario: "Scenario",
+    scenario: "Scenario | str | Path",
     progress: Callable[[float], None] | None = None,
     trust_fmu: bool = False,
     client: "Client | None" = None,
+    *,
+    label: str | None = None,
+    controllers: Sequence[str] = (),
+    settings: Sequence[str] = (),
 ) -> Comparison | Result:
     """Run a scenario as the command line does: every controller set of its comparison in
     parallel (a :class:`~emasim.sim.result.Comparison`), or its one run (a Result) when it
-    compares nothing (``load_scenario(..., label=...)`` picks one set). Both have ``metrics``,
-    ``plot()`` and ``save()``."""
+    compares nothing. ``scenario`` is a Scenario, or a shipped scenario's name or a TOML
+    file's path, read with ``label``, ``controllers`` and ``settings`` as ``emasim run`` reads
+    ``--label``, ``--controller`` and ``--set`` (:func:`emasim.scenarios.loader.load_scenario`:
+    ``label`` picks one set). Both results have ``metrics``, ``plot()`` and ``save()``."""
+    if isinstance(scenario, str | Path):
+        from ..scenarios.loader import load_scenario
+
+        scenario = load_scenario(str(scenario), list(settings), list(controllers), label)
+    elif label is not None or controllers or settings:
+        raise InputError(
+            "emasim.run: label, controllers and settings apply to a scenario's name or path; "
+            "give load_scenario(...) them for a Scenario"
+        )
     if scenario.compare:
         return run_comparison(scenario, progress, trust_fmu, client)
     return run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)
