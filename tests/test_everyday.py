@@ -182,6 +182,12 @@ def test_a_law_of_ones_own_gives_a_full_result(tmp_path):
     assert (saved / "plot.png").exists()
 
 
+def test_a_plain_python_law_is_refused_in_one_line():
+    plain = proportional_speed_law.py_func  # the same law, not compiled
+    with pytest.raises(emasim.errors.InputError, match="plain Python function; compile it with"):
+        Compiled(plain, np.array([0.5]), np.zeros(1))
+
+
 def test_plots_name_the_run_zoom_on_its_events_and_share_compared_axes():
     from emasim.analysis.plots import plot_bench, plot_comparison, plot_result
 

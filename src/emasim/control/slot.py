@@ -30,6 +30,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from ..config import STRICT
+from ..errors import InputError
 from ..jit import njit
 
 Loop = Literal["speed", "position"]
@@ -96,6 +97,12 @@ class Compiled:
         # a law decorated with controller_law is compiled here, on first use (from the disk
         # cache when warm), so that importing the library does not load every controller
         signature = controller_signature()
+        if not hasattr(self.function, "overloads"):  # a plain Python function: numba cannot call it
+            name = getattr(self.function, "__name__", repr(self.function))
+            raise InputError(
+                f"the control law {name} is a plain Python function; compile it with "
+                "numba.njit(emasim.control.slot.CONTROLLER_SIG) (README: a controller of your own)"
+            )
         if signature.args not in self.function.overloads:
             self.function.compile(signature)
 
