@@ -18,6 +18,7 @@ from .small_signal import (
     readings,
     rigid_motion,
     steps_for,
+    with_states,
 )
 
 REFERENCE_STEP = {True: 1e-9, False: 1e-6}  # m of a position reference, rad/s of a speed one
@@ -38,8 +39,8 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
     The operating point: the run's state at ``at_s``, or the steady state x0 held with the
     reference at its fed-back value, after START_TICKS ticks there (so that each law has made
     its first call). A speed loop's states are taken less the rigid motion, as in continuous
-    time. The sensors are ideal; the reference's rates, which feed the
-    feed-forwards, are not an input (its value steps, its rates stay). Laws that do not move
+    time. The sensors are ideal; the reference's rates, which feed the feed-forwards, are not
+    an input (its value steps, its rates stay). Laws that do not move
     or act (a slot's unused entries) are left out."""
     position = scenario.controllers.position is not None
     ideal = setup.with_(sensors=ideal_table())
@@ -58,8 +59,7 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
     base = np.concatenate([data.x[states], *data.slot_states, data.drive[[D_UD, D_UQ]]])
 
     def tick(z, offset=0.0):
-        x = data.x.copy()
-        x[states] = z[: len(states)]
+        x = with_states(data.x, states, z[: len(states)])
         chunks = np.split(z[len(states) : -2], np.cumsum(slots)[:-1])
         drive = data.drive.copy()
         drive[[D_UD, D_UQ]] = z[-2:]
@@ -92,7 +92,7 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
     )
     c = np.zeros((1, len(base)))
     c[0, : len(states)] = difference(
-        lambda z: readings(setup, p, _with(data.x, states, z)),
+        lambda z: readings(setup, p, with_states(data.x, states, z)),
         data.x[states],
         steps[: len(states)],
         names,
@@ -119,12 +119,6 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
         states=[names[i] for i in keep],
         name=f"{scenario.name}-discrete",
     )
-
-
-def _with(x: np.ndarray, states: list[int], z: np.ndarray) -> np.ndarray:
-    out = x.copy()
-    out[states] = z
-    return out
 
 
 def _acting(a: np.ndarray, c: np.ndarray) -> list[int]:

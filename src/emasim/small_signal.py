@@ -106,15 +106,20 @@ def steps_for(x: np.ndarray, states: list[int]) -> np.ndarray:
     return np.maximum(STEP_TOLERANCES * atol, 1e-6 * np.abs(x[states]))
 
 
+def with_states(x: np.ndarray, states: list[int], z: np.ndarray) -> np.ndarray:
+    """A copy of the state x with its entries ``states`` set to z."""
+    out = x.copy()
+    out[states] = z
+    return out
+
+
 def jacobians(setup, p, x0, u0, t0, states):
     """(A, B over (vd, vq), C of the readings) at (x0, u0) and the loads at t0, over the
     moving ``states``."""
     inputs0 = np.concatenate([u0, loads_at(setup, t0)])
 
     def at(z):
-        x = x0.copy()
-        x[states] = z
-        return x
+        return with_states(x0, states, z)
 
     names = [A.STATE_NAMES[i] for i in states]
     z0, steps = x0[states], steps_for(x0, states)
