@@ -34,6 +34,7 @@ ALLOWED = {
     "scenarios": BASE | {"plant", "control", "sim"},
     "analysis": BASE | {"signals"},
     "experiments": BASE | {"plant", "control", "sim", "scenarios", "analysis"},
+    "identification": BASE | {"plant", "control", "sim", "scenarios", "analysis"},
 }
 # a saved Result draws its own plot.png; analysis never imports sim, so this makes no cycle
 EXCEPTIONS = {("sim/result.py", "analysis")}

@@ -789,6 +789,97 @@ def _print_datasheet(result) -> None:
     console.print(table)
 
 
+@app.command()
+def identify(
+    scenario: Annotated[
+        str, typer.Argument(help='an axis scenario: emps, or a .toml path with kind = "axis"')
+    ],
+    data: Annotated[
+        Path, typer.Option("--data", "-d", help="the measured trace: .csv, .mat or .parquet")
+    ],
+    fit: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--fit",
+            "-f",
+            help="KEY or KEY=LOW:HIGH to fit, e.g. plant.mass_kg=10:1000 (repeatable; "
+            "default: the scenario's identify.fit)",
+        ),
+    ] = None,
+    mapping: Annotated[
+        list[str] | None,
+        typer.Option("--map", "-m", help="FILE_COLUMN=SIGNAL, e.g. qm=position_m (repeatable)"),
+    ] = None,
+    method: Annotated[
+        str | None,
+        typer.Option("--method", help="output-error (default) or idim (inverse model)"),
+    ] = None,
+    validate: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--validate", help="a second trace simulated with the fitted values (repeatable)"
+        ),
+    ] = None,
+    starts: Annotated[
+        int, typer.Option("--starts", help="output-error starts (the first from IDIM-LS)")
+    ] = 1,
+    setting: Annotated[
+        list[str] | None, typer.Option("--set", "-s", help="dotted.key=value override")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="result folder (default: a fresh runs/SCENARIO/identify-TIME)"
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+) -> None:
+    """Fit a scenario's parameters to a measured trace (output-error or IDIM-LS); write
+    identified.json, the calibrated scenario.toml, traces.parquet, fit.png and report.md."""
+    from .identification.identify import default_folder
+    from .identification.identify import identify as run_identify
+    from .output import check_folder
+
+    try:
+        if out is not None:
+            check_folder(out, force)  # refuse before spending the fit's time
+        result = run_identify(
+            scenario,
+            data,
+            fit=fit or [],
+            mapping=mapping or [],
+            method=method,
+            settings=setting or [],
+            validate=validate or [],
+            starts=starts,
+            out=out or default_folder(scenario),
+            force=force,
+        )
+    except EmasimError as err:
+        _fail(err)
+    if _loud():
+        table = Table(title=f"{result.scenario}: identified by {result.method}")
+        table.add_column("key")
+        table.add_column("value", justify="right")
+        table.add_column("95 % interval", justify="right")
+        for key, value in result.values.items():
+            table.add_row(key, f"{value:.6g}", f"± {result.interval95[key]:.3g}")
+        console.print(table)
+        table = Table(title="relative errors of the free-run simulation")
+        table.add_column("output")
+        table.add_column("training", justify="right")
+        for path in result.validation:
+            table.add_column(Path(path).name, justify="right")
+        for name, error in result.errors.items():
+            others = [f"{100 * v[name]:.4g} %" for v in result.validation.values()]
+            table.add_row(name, f"{100 * error:.4g} %", *others)
+        console.print(table)
+    log.info(
+        f"identified in {result.seconds:.1f} s; wrote {result.folder}/ (identified.json, "
+        "scenario.toml, traces.parquet, fit.png, report.md)"
+    )
+
+
 @app.command("export-fmu")
 def export_fmu(
     out: Annotated[

@@ -230,15 +230,16 @@ def validate_scenario(raw: dict, source: str = "scenario") -> Scenario:
         raise InputError(f"{source}: {err}") from None
 
 
-def describe_errors(err: ValidationError) -> list[str]:
-    """One 'dotted.path: what is wrong (allowed ...)' line per pydantic error."""
+def describe_errors(err: ValidationError, root: type[BaseModel] | None = None) -> list[str]:
+    """One 'dotted.path: what is wrong (allowed ...)' line per pydantic error of the model
+    ``root`` (a Scenario by default)."""
     lines = []
     for e in err.errors(include_url=False):
         loc = [str(part) for part in e["loc"] if not _is_union_tag(part)]
         path = ".".join(loc)
         prefix = f"{path}: " if path else ""
         if e["type"] == "extra_forbidden":
-            allowed = _allowed_keys(loc[:-1])
+            allowed = _allowed_keys(loc[:-1], root or Scenario)
             close = difflib.get_close_matches(loc[-1], allowed, n=1) if loc else []
             hint = f"; did you mean '{close[0]}'?" if close else ""
             keys = f"; allowed: {', '.join(allowed)}" if allowed else ""
@@ -262,9 +263,9 @@ def _is_union_tag(part) -> bool:
     return isinstance(part, str) and part in UNION_TAGS
 
 
-def _allowed_keys(loc: list[str]) -> list[str]:
-    """The field names of the model at a location inside Scenario (best effort)."""
-    model: type[BaseModel] | None = Scenario
+def _allowed_keys(loc: list[str], root: type[BaseModel]) -> list[str]:
+    """The field names of the model at a location inside ``root`` (best effort)."""
+    model: type[BaseModel] | None = root
     for part in loc:
         if model is None or part.isdigit():
             continue

@@ -103,6 +103,21 @@ def coulomb_viscous_force(v, fc, v_smooth, sigma2):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def asymmetric_coulomb_viscous_force(v, fc_pos, fv_pos, fc_neg, fv_neg, v_smooth):
+    """Static map with a Coulomb and a viscous coefficient for each direction:
+
+        Ff = Fc+ tanh(v / v_smooth) + Fv+ v   for v >= 0
+        Ff = Fc- tanh(v / v_smooth) + Fv- v   for v < 0
+
+    (Janot, Young, Gautier, Int. J. Control 90(4), 2017, eq. 12 of the EMPS description, with
+    tanh for sign as in :func:`coulomb_viscous_force`, which it equals for equal coefficients).
+    Continuous at v = 0, where both branches are 0."""
+    if v >= 0.0:
+        return coulomb_viscous_force(v, fc_pos, v_smooth, fv_pos)
+    return coulomb_viscous_force(v, fc_neg, v_smooth, fv_neg)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def friction_torque(w, z, model, fc, fs, ws, sigma0, sigma1, sigma2, w_smooth):
     """Friction torque on the shaft (N m) at speed w and bristle state z, and the bristle rate
     dz/dt (rad/s, zero but for the LuGre model), for the model FRICTION_*."""

@@ -1,0 +1,35 @@
+"""The figure of an identification: each measured output beside the simulated one, and the
+residual below it."""
+
+import numpy as np
+
+UNITS = {"position_m": ("position", "mm", 1e3), "command_V": ("drive input", "V", 1.0)}
+
+
+def fit_figure(time: np.ndarray, measured: dict, simulated: dict, title: str):
+    """A Figure with, per output (UNITS), the measured and simulated traces and their
+    difference, in the unit of UNITS."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [n for n in UNITS if n in measured]
+    fig, axes = plt.subplots(
+        2, len(names), figsize=(6.0 * len(names), 5.5), sharex=True, squeeze=False
+    )
+    for j, name in enumerate(names):
+        what, unit, scale = UNITS[name]
+        top, bottom = axes[0, j], axes[1, j]
+        top.plot(time, scale * measured[name], label="measured", lw=1.0)
+        top.plot(time, scale * simulated[name], label="simulated", lw=0.8, ls="--")
+        top.set_ylabel(f"{what} ({unit})")
+        top.legend(loc="best")
+        top.grid(True, alpha=0.3)
+        bottom.plot(time, scale * (measured[name] - simulated[name]), lw=0.6, color="C3")
+        bottom.set_ylabel(f"measured - simulated ({unit})")
+        bottom.set_xlabel("time (s)")
+        bottom.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig

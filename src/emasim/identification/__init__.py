@@ -1,0 +1,1 @@
+"""Calibrating a model against measured traces: the data, IDIM-LS, the output-error fit."""

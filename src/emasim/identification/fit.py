@@ -1,0 +1,171 @@
+"""The keys a fit varies, and the output-error fit: bounded nonlinear least squares.
+
+A key is a scenario's dotted path with its range, ``plant.mass_kg=10:1000`` (the range is the
+scenario's default where only the path is given). The output-error fit simulates the model
+with the candidate values and minimises the weighted relative residuals of the measured
+outputs,
+
+    r = [w_j (y_j,sim - y_j,meas) / |y_j,meas|  for each output j],
+
+by scipy.optimize.least_squares (trust-region reflective within the ranges, the Jacobian by
+forward differences of relative step ``DIFF_STEP``: larger than the encoder's quantisation
+makes the residual's response to a tiny step). ``starts`` > 1 adds starts drawn in the
+ranges (a scrambled Sobol sequence, seeded) and keeps the best: a multi-start for a
+multimodal cost. At the optimum, the covariance s^2 (J^T J)^-1 with s^2 = |r|^2 / (N - p)
+gives each value's 95 % interval (1.96 standard deviations) and the correlations. The
+residuals of a closed loop are correlated in time, so these intervals are narrower than the
+truth; they rank what the data pin down and what they do not.
+"""
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import EmasimError, InputError
+
+DIFF_STEP = 1e-3
+NULL_DIRECTION = 1e-10  # a singular value this far below the largest: a direction unseen
+Z95 = 1.959963984540054  # the two-sided 95 % point of the normal distribution
+
+
+@dataclass(frozen=True)
+class Key:
+    """A fitted key: its dotted path and range."""
+
+    path: str
+    low: float
+    high: float
+
+
+def parse_keys(items: list[str], defaults: list[str]) -> list[Key]:
+    """``KEY`` or ``KEY=LOW:HIGH`` items as Keys; a bare KEY takes its range from the
+    scenario's ``defaults`` (items of the same form). One InputError line for a bad item."""
+    ranges = {}
+    for item in defaults:
+        key = _key(item, {}, "identify.fit")
+        ranges[key.path] = key
+    keys = [_key(item, ranges, "--fit") for item in items] if items else list(ranges.values())
+    twice = sorted({k.path for k in keys if [j.path for j in keys].count(k.path) > 1})
+    if twice:
+        raise InputError(f"--fit: {', '.join(twice)} given twice")
+    return keys
+
+
+def _key(item: str, ranges: dict[str, Key], what: str) -> Key:
+    path, sep, span = item.partition("=")
+    path = path.strip()
+    if not path or any(not part for part in path.split(".")):
+        raise InputError(f"{what} {item!r}: give KEY or KEY=LOW:HIGH with a dotted KEY")
+    if not sep:
+        if path not in ranges:
+            raise InputError(
+                f"{what} {path}: give its range as {path}=LOW:HIGH (the scenario gives one "
+                f"for {', '.join(ranges) or 'no key'})"
+            )
+        return ranges[path]
+    low, colon, high = span.partition(":")
+    try:
+        lo, hi = float(low), float(high)
+    except ValueError:
+        lo = hi = math.nan
+    if not colon or not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise InputError(f"{what} {item!r}: the range must be LOW:HIGH, finite, LOW < HIGH")
+    return Key(path, lo, hi)
+
+
+@dataclass(frozen=True)
+class Fit:
+    """An output-error fit's result: the values by key, their 95 % half-intervals, the
+    correlation matrix (keys' order), the cost 0.5 |r|^2, the simulations run, whether the
+    optimiser converged (and its message) and the seconds taken."""
+
+    keys: tuple[Key, ...]
+    values: dict[str, float]
+    interval95: dict[str, float]
+    correlation: np.ndarray
+    cost: float
+    evaluations: int
+    converged: bool
+    message: str
+    seconds: float
+
+
+def output_error(
+    residuals: Callable[[np.ndarray], np.ndarray],
+    keys: list[Key],
+    start: np.ndarray,
+    starts: int = 1,
+    seed: int = 0,
+) -> Fit:
+    """Minimise |residuals(values)|^2 over the keys' ranges from ``start`` (module
+    docstring). A candidate whose simulation diverges scores a residual of 1 per sample."""
+    from scipy.optimize import least_squares
+    from scipy.stats import qmc
+
+    low = np.array([k.low for k in keys])
+    high = np.array([k.high for k in keys])
+    started = time.perf_counter()
+    size = residuals(np.clip(start, low, high)).size
+    count = 0
+
+    def guarded(values):
+        nonlocal count
+        count += 1
+        try:
+            return residuals(values)
+        except EmasimError:
+            return np.ones(size)
+
+    points = [np.clip(start, low, high)]
+    if starts > 1:
+        sobol = qmc.Sobol(len(keys), scramble=True, seed=seed).random(starts - 1)
+        points += list(qmc.scale(sobol, low, high))
+    best = None
+    for point in points:
+        result = least_squares(
+            guarded, point, bounds=(low, high), diff_step=DIFF_STEP, x_scale="jac", method="trf"
+        )
+        if best is None or result.cost < best.cost:
+            best = result
+    std, correlation = spread(best.jac, best.fun)
+    return Fit(
+        tuple(keys),
+        {k.path: float(v) for k, v in zip(keys, best.x, strict=True)},
+        {k.path: float(Z95 * s) for k, s in zip(keys, std, strict=True)},
+        correlation,
+        float(best.cost),
+        count,
+        bool(best.success),
+        str(best.message),
+        time.perf_counter() - started,
+    )
+
+
+def spread(jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each parameter's standard deviation and the correlation matrix from the Jacobian of
+    the residuals ``r`` at the optimum: s^2 (J^T J)^-1, s^2 = |r|^2 / (N - p), through the
+    singular values of J. A parameter with a part along a direction J does not see (a
+    singular value below 1e-10 of the largest) has an infinite deviation, and NaN
+    correlations: the data do not pin it down."""
+    _, singular, vt = np.linalg.svd(jac, full_matrices=False)
+    dof = max(r.size - jac.shape[1], 1)
+    s2 = float(r @ r) / dof
+    seen = singular > NULL_DIRECTION * singular[0] if singular.size and singular[0] > 0 else []
+    v = vt[seen].T / singular[seen]
+    covariance = s2 * (v @ v.T)
+    blind = np.any(np.abs(vt[~np.asarray(seen, dtype=bool)]) > NULL_DIRECTION, axis=0)
+    std = np.sqrt(np.abs(np.diag(covariance)))
+    std[blind] = np.inf
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = covariance / np.outer(std, std)
+    correlation[blind, :] = np.nan
+    correlation[:, blind] = np.nan
+    return std, correlation
+
+
+def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
+    """|measured - simulated|_2 / |measured|_2."""
+    return float(np.linalg.norm(measured - simulated) / np.linalg.norm(measured))
