@@ -836,7 +836,7 @@ def identify(
 ) -> None:
     """Fit a scenario's parameters to a measured trace (output-error or IDIM-LS); write
     identified.json, the calibrated scenario.toml, traces.parquet, fit.png and report.md."""
-    from .identification.identify import default_folder
+    from .identification.identify import default_folder, shown
     from .identification.identify import identify as run_identify
     from .output import check_folder
 
@@ -865,15 +865,17 @@ def identify(
         for key, value in result.values.items():
             table.add_row(key, f"{value:.6g}", f"± {result.interval95[key]:.3g}")
         console.print(table)
-        table = Table(title="relative errors of the free-run simulation")
+        table = Table(title="free-run simulation: relative errors, position RMSE")
         table.add_column("output")
         table.add_column("training", justify="right")
         for path in result.validation:
             table.add_column(Path(path).name, justify="right")
         for name, error in result.errors.items():
-            others = [f"{100 * v[name]:.4g} %" for v in result.validation.values()]
-            table.add_row(name, f"{100 * error:.4g} %", *others)
+            others = [shown(name, v[name]) for v in result.validation.values()]
+            table.add_row(name, shown(name, error), *others)
         console.print(table)
+    for key, bound in result.on_bound.items():
+        log.warning(f"{key} sits on the {bound} bound of its --fit range: widen it")
     log.info(
         f"identified in {result.seconds:.1f} s; wrote {result.folder}/ (identified.json, "
         "scenario.toml, traces.parquet, fit.png, report.md)"

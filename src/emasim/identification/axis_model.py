@@ -78,7 +78,7 @@ class AxisModel:
         """The scenario with the dotted keys set to ``values``, validated."""
         raw = copy.deepcopy(self.raw)
         for path, value in values.items():
-            if isinstance(_get(raw, path), dict | list | str | bool):
+            if isinstance(raw_value(raw, path), dict | list | str | bool):
                 raise InputError(f"{what}: '{path}' is not a number of the scenario")
             set_key(raw, path, float(value), what)
         return validate_axis(raw, f"{what} {self.source}")
@@ -124,11 +124,11 @@ class AxisModel:
 
         return residual
 
-    def errors(self, scenario: AxisScenario) -> dict[str, float]:
-        """The relative errors |y - y_sim| / |y| of the free-run simulation: position and drive
-        input, and velocity and acceleration (both band-passed as IDIM-LS does)."""
-        simulated = self.simulate(scenario)
-        compared = self.compared(simulated)
+    def errors(self, scenario: AxisScenario) -> tuple[dict[str, float], dict]:
+        """The relative errors |y - y_sim| / |y| of the free-run simulation (position, drive
+        input, and velocity and acceleration, both band-passed as IDIM-LS does) with its
+        position RMSE (mm, ``position_rmse_mm``), and the simulated outputs (:meth:`compared`)."""
+        compared = self.compared(self.simulate(scenario))
         measured = self.motion
         model = idim.bandpass(compared["position_m"], self.trace.sample_period_s)
         errors = {
@@ -138,7 +138,9 @@ class AxisModel:
         }
         errors["velocity_m_s"] = relative_error(measured.velocity, model.velocity)
         errors["acceleration_m_s2"] = relative_error(measured.acceleration, model.acceleration)
-        return errors
+        miss = self.trace.signals["position_m"] - compared["position_m"]
+        errors["position_rmse_mm"] = float(1e3 * np.sqrt(np.mean(miss**2)))
+        return errors, compared
 
     def idim(self, keys: list[Key], decimation: int = idim.DECIMATION) -> idim.Estimate:
         """IDIM-LS of the fitted keys: the inverse model's columns of those keys against the
@@ -162,12 +164,12 @@ class AxisModel:
         fitted = {k.path for k in keys}
         for path, column in columns.items():
             if path not in fitted:
-                value = _get(self.raw, path)
+                value = raw_value(self.raw, path)
                 force = force - (0.0 if value is None else float(value)) * column
         return idim.least_squares({k.path: columns[k.path] for k in keys}, force, decimation)
 
 
-def _get(raw: dict, path: str):
+def raw_value(raw: dict, path: str):
     """The raw value at a dotted path, or None."""
     node = raw
     for part in path.split("."):

@@ -17,19 +17,21 @@ errors are reported beside the training trace's.
 """
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
 from ..jsonio import json_text
-from ..naming import RUNS_ROOT, fresh_folder
-from ..output import write_folder, write_new
+from ..naming import RUNS_ROOT, fresh_folder, slug
+from ..output import new_file, write_folder, write_new
+from ..scenarios.axis_scenario import is_axis_scenario, read_axis_raw
+from ..scenarios.loader import set_key, setting_value
 from ..version import __version__
-from .axis_model import AxisModel
+from .axis_model import AxisModel, raw_value
 from .data import parse_map
-from .fit import Fit, output_error, parse_keys
+from .fit import Z95, Fit, Key, output_error, parse_keys
 from .idim import Estimate
 
 METHODS = ("output-error", "idim")
@@ -46,6 +48,7 @@ class Identified:
     values: dict[str, float]
     interval95: dict[str, float]
     correlation: dict[str, dict[str, float]]
+    on_bound: dict[str, str]
     errors: dict[str, float]
     validation: dict[str, dict[str, float]]
     data: dict[str, str]
@@ -66,6 +69,7 @@ class Identified:
                     "value": value,
                     "interval95": self.interval95[key],
                     "correlation": self.correlation[key],
+                    "on_bound": self.on_bound.get(key),
                 }
                 for key, value in self.values.items()
             },
@@ -99,8 +103,9 @@ def _correlations(paths: list[str], matrix: np.ndarray) -> dict[str, dict[str, f
     }
 
 
-def _calibrated_text(text: str, values: dict[str, float]) -> str:
-    """The scenario's text with the dotted keys set to the values (tomlkit keeps the rest)."""
+def calibrated_text(text: str, values: dict, data: str, sha256: str) -> str:
+    """The scenario's text with the dotted keys set to ``values`` (tomlkit keeps the rest, its
+    comments included) under a first line saying so."""
     import tomlkit
 
     document = tomlkit.parse(text)
@@ -112,7 +117,42 @@ def _calibrated_text(text: str, values: dict[str, float]) -> str:
                 table[part] = tomlkit.table()
             table = table[part]
         table[last] = value
-    return tomlkit.dumps(document)
+    header = (
+        f"# Calibrated by emasim identify from {data} (sha256 {sha256}): "
+        f"{', '.join(values)} hold the identified values (identified.json); the comments "
+        "below are the original scenario's.\n"
+    )
+    return header + tomlkit.dumps(document)
+
+
+def on_bound(keys: list[Key], values: dict[str, float]) -> dict[str, str]:
+    """Key -> "lower" or "upper" for a value on its range's bound (within 1e-9 of the range):
+    the fit would go further; widen the range, or the model misses something."""
+    found = {}
+    for key in keys:
+        margin = 1e-9 * (key.high - key.low)
+        if values[key.path] <= key.low + margin:
+            found[key.path] = "lower"
+        elif values[key.path] >= key.high - margin:
+            found[key.path] = "upper"
+    return found
+
+
+def _estimate(model: AxisModel, keys: list[Key], method: str, starts: int):
+    """(values, 95 % half-intervals, correlation matrix, IDIM estimate, output-error fit)."""
+    estimate = None
+    try:
+        estimate = model.idim(keys)
+    except InputError:
+        if method == "idim":
+            raise
+    if method == "idim":
+        interval = {k: Z95 * s for k, s in estimate.std.items()}
+        return estimate.values, interval, estimate.correlation, estimate, None
+    start = np.array([estimate.values[k.path] if estimate else _value(model, k.path) for k in keys])
+    start = np.clip(start, [k.low for k in keys], [k.high for k in keys])
+    fit = output_error(model.residuals(keys), keys, start, starts=starts)
+    return fit.values, fit.interval95, fit.correlation, estimate, fit
 
 
 def identify(
@@ -132,9 +172,6 @@ def identify(
     items ``FILE_COLUMN=SIGNAL`` add to the scenario's column map, ``settings`` items
     ``KEY=VALUE`` change it first. ``out``: the result folder (None: written nowhere; the
     command line writes runs/<scenario>/identify-<time> by default)."""
-    from ..scenarios.axis_scenario import is_axis_scenario, read_axis_raw
-    from ..scenarios.loader import apply_setting, read_scenario_text
-
     started = time.perf_counter()
     if not is_axis_scenario(str(scenario)):
         raise InputError(
@@ -143,38 +180,19 @@ def identify(
         )
     if starts < 1:
         raise InputError(f"--starts {starts}: give at least 1")
-    raw, source = read_axis_raw(str(scenario))
-    for setting in settings:
-        apply_setting(raw, setting)
-    model = AxisModel.read(raw, source, data, parse_map(list(mapping)))
+    raw, source, text = read_axis_raw(str(scenario))
+    changed = dict(setting_value(item) for item in settings)
+    for key, value in changed.items():
+        set_key(raw, key, value, "--set")
+    columns = parse_map(list(mapping))
+    model = AxisModel.read(raw, source, data, columns)
     chosen = method or model.scenario.identify.method
     if chosen not in METHODS:
         raise InputError(f"--method {chosen}: choose one of {', '.join(METHODS)}")
     keys = parse_keys(list(fit), model.scenario.identify.fit)
     model.check_keys(keys)
-    paths = [k.path for k in keys]
-    estimate = None
-    try:
-        estimate = model.idim(keys)
-    except InputError:
-        if chosen == "idim":
-            raise
-    result_fit = None
-    if chosen == "idim":
-        values = estimate.values
-        interval = {k: 1.959963984540054 * s for k, s in estimate.std.items()}
-        correlation = estimate.correlation
-    else:
-        start = np.array(
-            [estimate.values[k.path] if estimate else _value(model, k.path) for k in keys]
-        )
-        start = np.clip(start, [k.low for k in keys], [k.high for k in keys])
-        result_fit = output_error(model.residuals(keys), keys, start, starts=starts)
-        values, interval, correlation = (
-            result_fit.values,
-            result_fit.interval95,
-            result_fit.correlation,
-        )
+    others = [AxisModel.read(raw, source, path, columns) for path in validate]
+    values, interval, correlation, estimate, result_fit = _estimate(model, keys, chosen, starts)
     blind = [key for key, half in interval.items() if not np.isfinite(half)]
     if blind:
         raise InputError(
@@ -182,30 +200,27 @@ def identify(
             "combination of them leaves the fit unchanged, so no value is identified); fit "
             "fewer keys or a trace that excites them"
         )
-    calibrated = model.with_values(values)
-    errors = model.errors(calibrated)
-    validation = {}
-    for other in validate:
-        other_model = AxisModel(raw, source, _trace_like(model, other, mapping))
-        validation[str(other)] = other_model.errors(other_model.with_values(values))
-        validation[str(other)]["rmse_position_mm"] = _rmse_mm(other_model, values)
-    text, _ = read_scenario_text(
-        str(scenario) if Path(str(scenario)).is_file() else _shipped_path(scenario)
-    )
-    simulated = model.compared(model.simulate(calibrated))
+    errors, simulated = model.errors(model.with_values(values))
+    validation = {
+        str(path): other.errors(other.with_values(values))[0]
+        for path, other in zip(validate, others, strict=True)
+    }
     result = Identified(
         scenario=model.scenario.name,
         method=chosen,
         values=values,
         interval95=interval,
-        correlation=_correlations(paths, correlation),
+        on_bound=on_bound(keys, values),
+        correlation=_correlations([k.path for k in keys], correlation),
         errors=errors,
         validation=validation,
         data={"file": str(model.trace.path), "sha256": model.trace.sha256},
         seconds=time.perf_counter() - started,
         idim=estimate,
         fit=result_fit,
-        calibrated_toml=_calibrated_text(text, {**_settings_values(settings), **values}),
+        calibrated_toml=calibrated_text(
+            text, {**changed, **values}, str(model.trace.path), model.trace.sha256
+        ),
         traces={
             "time_s": model.trace.signals["time_s"],
             **{f"measured_{n}": model.trace.signals[n] for n in model.outputs},
@@ -214,59 +229,19 @@ def identify(
     )
     if out is None:
         return result
-    folder = write_result(result, Path(out), force)
-    return Identified(**{**result.__dict__, "folder": folder})
+    return replace(result, folder=write_result(result, Path(out), force))
 
 
 def default_folder(scenario: str) -> Path:
     """runs/<scenario>/identify-<time>."""
-    from ..naming import slug
-
     return fresh_folder(RUNS_ROOT / slug(Path(scenario).stem), "identify")
 
 
 def _value(model: AxisModel, path: str) -> float:
-    from .axis_model import _get
-
-    value = _get(model.raw, path)
-    if value is None:
+    value = raw_value(model.raw, path)
+    if not isinstance(value, float | int):
         raise InputError(f"--fit {path}: the scenario does not set it; give it with --set")
     return float(value)
-
-
-def _settings_values(settings: list[str]) -> dict:
-    """--set items as {key: value} for the calibrated file (only numbers and strings)."""
-    import tomllib
-
-    found = {}
-    for item in settings:
-        key, _, text = item.partition("=")
-        try:
-            found[key] = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
-            found[key] = text
-    return found
-
-
-def _shipped_path(name: str) -> str:
-    from ..scenarios.axis_scenario import builtin_axis_scenarios
-
-    return str(builtin_axis_scenarios()[name])
-
-
-def _trace_like(model: AxisModel, path, mapping: list[str]):
-    from ..scenarios.axis_scenario import REQUIRED, SIGNALS
-    from .data import load_trace
-
-    return load_trace(
-        path, SIGNALS, REQUIRED, parse_map(list(mapping)), model.scenario.identify.map
-    )
-
-
-def _rmse_mm(model: AxisModel, values: dict[str, float]) -> float:
-    simulated = model.compared(model.simulate(model.with_values(values)))["position_m"]
-    measured = model.trace.signals["position_m"]
-    return float(1e3 * np.sqrt(np.mean((measured - simulated) ** 2)))
 
 
 def report_text(result: Identified) -> str:
@@ -281,8 +256,14 @@ def report_text(result: Identified) -> str:
         "|---|---:|---:|",
     ]
     for key, value in result.values.items():
-        lines.append(f"| `{key}` | {value:.6g} | ± {result.interval95[key]:.3g} |")
-    lines += ["", "Relative errors of the free-run simulation, |y - y_sim| / |y|:", ""]
+        bound = result.on_bound.get(key)
+        note = f" (on its {bound} bound)" if bound else ""
+        lines.append(f"| `{key}` | {value:.6g}{note} | ± {result.interval95[key]:.3g} |")
+    lines += [
+        "",
+        "Relative errors |y - y_sim| / |y| of the free-run simulation, and its position RMSE:",
+        "",
+    ]
     columns = ["training", *result.validation]
     lines += [
         "| output | " + " | ".join(f"`{Path(c).name}`" for c in columns) + " |",
@@ -290,12 +271,14 @@ def report_text(result: Identified) -> str:
     ]
     rows = [result.errors, *result.validation.values()]
     for name in result.errors:
-        cells = [f"{100 * r[name]:.4g} %" if name in r else "" for r in rows]
+        cells = [shown(name, r[name]) if name in r else "" for r in rows]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    for path, errors in result.validation.items():
-        lines.append("")
-        lines.append(f"`{Path(path).name}`: position RMSE {errors['rmse_position_mm']:.4g} mm.")
     return "\n".join(lines) + "\n"
+
+
+def shown(name: str, value: float) -> str:
+    """A relative error in %, an RMSE in its unit."""
+    return f"{value:.4g} mm" if name.endswith("_mm") else f"{100 * value:.4g} %"
 
 
 def write_result(result: Identified, out: Path, force: bool) -> Path:
@@ -314,8 +297,6 @@ def write_result(result: Identified, out: Path, force: bool) -> Path:
         for name in outputs:
             table[f"residual_{name}"] = table[f"measured_{name}"] - table[f"simulated_{name}"]
         frame = pd.DataFrame(table)
-        from ..output import new_file
-
         with new_file(tmp / "traces.parquet") as handle:
             frame.to_parquet(handle)
         measured = {n: result.traces[f"measured_{n}"] for n in outputs}
@@ -328,5 +309,4 @@ def write_result(result: Identified, out: Path, force: bool) -> Path:
         )
         write_new(tmp / "report.md", report_text(result))
 
-    unique = False
-    return write_folder(out, write, force=force, unique=unique, kind="identification")
+    return write_folder(out, write, force=force, kind="identification")

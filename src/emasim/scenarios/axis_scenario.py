@@ -113,15 +113,16 @@ def is_axis_scenario(name_or_path: str) -> bool:
         return False  # read_axis_raw names the problem
 
 
-def read_axis_raw(name_or_path: str) -> tuple[dict, str]:
-    """The raw table of an axis scenario (a shipped name or a path) and where it came from."""
+def read_axis_raw(name_or_path: str) -> tuple[dict, str, str]:
+    """The raw table of an axis scenario (a shipped name or a path), where it came from and
+    its text."""
     shipped = builtin_axis_scenarios()
     path = str(shipped[name_or_path]) if name_or_path in shipped else name_or_path
     text, source = read_scenario_text(path)
     source = name_or_path if name_or_path in shipped else source
     raw = parse_toml(text, f"scenario: {source}")
     check_raw(raw, source)
-    return raw, source
+    return raw, source, text
 
 
 def validate_axis(raw: dict, source: str) -> AxisScenario:
@@ -134,7 +135,7 @@ def validate_axis(raw: dict, source: str) -> AxisScenario:
 
 def load_axis_scenario(name_or_path: str, settings: list[str] = ()) -> AxisScenario:
     """Read, override (``--set KEY=VALUE``) and validate an axis scenario."""
-    raw, source = read_axis_raw(name_or_path)
+    raw, source, _ = read_axis_raw(name_or_path)
     for setting in settings:
         apply_setting(raw, setting)
     return validate_axis(raw, source)

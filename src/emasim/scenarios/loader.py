@@ -113,8 +113,9 @@ def apply_controller_choice(raw: dict, choice: str) -> None:
     raw.setdefault("controllers", {})[loop] = {"name": name}
 
 
-def apply_setting(raw: dict, setting: str) -> None:
-    """Apply ``dotted.key=value``; the value is read as TOML (number, bool, string, array)."""
+def setting_value(setting: str) -> tuple[str, object]:
+    """``dotted.key=value`` as (key, value), the value read as TOML (number, bool, string,
+    array) and a bare word as a string."""
     key, sep, text = setting.partition("=")
     parts = key.split(".")
     if not sep or not all(parts):
@@ -126,6 +127,12 @@ def apply_setting(raw: dict, setting: str) -> None:
     except RecursionError:
         raise InputError(f"--set {key}: nested too deeply") from None
     check_raw(value, f"--set {key}")
+    return key, value
+
+
+def apply_setting(raw: dict, setting: str) -> None:
+    """Apply ``dotted.key=value`` (:func:`setting_value`)."""
+    key, value = setting_value(setting)
     set_key(raw, key, value, "--set")
 
 
