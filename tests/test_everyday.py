@@ -145,7 +145,7 @@ def test_emasim_run_returns_the_comparison_with_plot_and_save(tmp_path):
 def test_emasim_run_takes_a_name_or_a_path_with_the_command_lines_options(tmp_path):
     """emasim.run("speed-step", label=..., settings=[...]) reads the scenario as `emasim run`
     does: the same traces as load_scenario then run; the options with a Scenario are refused in
-    one line; dir(emasim) lists run and linearize before their first use."""
+    one line; dir(emasim) lists run, linearize and identify before their first use."""
     by_name = emasim.run("speed-step", label="PI", settings=[SHORT])
     by_scenario = emasim.run(load_scenario("speed-step", label="PI", settings=[SHORT]))
     assert isinstance(by_name, Result)
@@ -157,7 +157,7 @@ def test_emasim_run_takes_a_name_or_a_path_with_the_command_lines_options(tmp_pa
     np.testing.assert_array_equal(again["motor_speed_rad_s"], by_name["motor_speed_rad_s"])
     with pytest.raises(emasim.errors.InputError, match="apply to a scenario's name or path"):
         emasim.run(load_scenario("speed-step"), label="PI")
-    assert {"run", "linearize", "__version__"} <= set(dir(emasim))
+    assert {"run", "linearize", "identify", "__version__"} <= set(dir(emasim))
 
 
 @numba.njit(CONTROLLER_SIG)

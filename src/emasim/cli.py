@@ -187,6 +187,7 @@ def _fail(err: Exception) -> None:
 def list_all() -> None:
     """Show the shipped scenarios, the controllers of each loop and the presets."""
     from .control.registry import CASCADES, CONTROLLERS, DESCRIPTIONS
+    from .scenarios.axis_scenario import builtin_axis_scenarios, read_axis_raw
     from .scenarios.loader import builtin_scenarios, read_scenario_file
 
     table = Table(title="scenarios")
@@ -195,6 +196,9 @@ def list_all() -> None:
     for name in sorted(builtin_scenarios()):
         raw, _ = read_scenario_file(name)
         table.add_row(name, raw.get("description", ""))
+    for name in sorted(builtin_axis_scenarios()):
+        raw, _, _ = read_axis_raw(name)
+        table.add_row(name, f"{raw.get('description', '')} (emasim identify)")
     console.print(table)
     table = Table(title="controllers (--controller LOOP=NAME)")
     table.add_column("loop")

@@ -142,9 +142,8 @@ class AxisModel:
         errors["position_rmse_mm"] = float(1e3 * np.sqrt(np.mean(miss**2)))
         return errors, compared
 
-    def idim(self, keys: list[Key], decimation: int = idim.DECIMATION) -> idim.Estimate:
-        """IDIM-LS of the fitted keys: the inverse model's columns of those keys against the
-        measured force g_tau * command, less the terms of the parameters not fitted."""
+    def _inverse_model(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """The inverse model's columns by key and the measured force g_tau * command (N)."""
         if "command_V" not in self.trace.signals:
             raise InputError("--method idim: the trace has no command_V (the drive's input)")
         plant = self.scenario.plant
@@ -153,14 +152,29 @@ class AxisModel:
             columns = inverse_model(plant.friction.model, motion.velocity, motion.acceleration)
         except ValueError as err:
             raise InputError(f"--method idim: {err}; use --method output-error") from None
-        columns = {PLANT_PREFIX + name: column for name, column in columns.items()}
+        force = plant.drive_gain_N_per_V * self.trace.signals["command_V"]
+        return {PLANT_PREFIX + name: column for name, column in columns.items()}, force
+
+    def inverse_error(self, values: dict[str, float]) -> float:
+        """The inverse model's relative error on this trace with ``values`` (the scenario's
+        for the other parameters), decimated as IDIM-LS is: the cross-test of an estimate."""
+        columns, force = self._inverse_model()
+        model = sum(
+            values.get(path, float(raw_value(self.raw, path) or 0.0)) * column
+            for path, column in columns.items()
+        )
+        return idim.decimated_error(force, model)
+
+    def idim(self, keys: list[Key], decimation: int = idim.DECIMATION) -> idim.Estimate:
+        """IDIM-LS of the fitted keys: the inverse model's columns of those keys against the
+        measured force g_tau * command, less the terms of the parameters not fitted."""
+        columns, force = self._inverse_model()
         unknown = [k.path for k in keys if k.path not in columns]
         if unknown:
             raise InputError(
                 f"--method idim: {', '.join(unknown)} is not a parameter of the inverse model "
                 f"(its parameters: {', '.join(columns)}); use --method output-error"
             )
-        force = plant.drive_gain_N_per_V * self.trace.signals["command_V"]
         fitted = {k.path for k in keys}
         for path, column in columns.items():
             if path not in fitted:

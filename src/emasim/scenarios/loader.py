@@ -42,6 +42,11 @@ def read_scenario_text(name_or_path: str) -> tuple[str, str]:
         path, source = shipped[name_or_path], name_or_path
     else:
         path = Path(name_or_path)
+        if (resources.files(__package__) / "axis" / f"{name_or_path}.toml").is_file():
+            raise InputError(
+                f"scenario: '{name_or_path}' is an axis scenario, simulated against a measured "
+                f"trace: emasim identify {name_or_path} --data FILE"
+            )
         if path.suffix != ".toml" or not path.is_file():
             raise InputError(
                 f"scenario: unknown scenario '{name_or_path}'; choose one of: "
