@@ -272,12 +272,33 @@ def test_speed_sine_gain_phase_and_max_error():
     ref = 1000.0 * np.sin(w * t)
     y = gain * 1000.0 * np.sin(w * t - lag)
     result = FakeResult(t, sine_scenario(), motor_speed_rad_s=RPM * y, speed_ref_rad_s=RPM * ref)
-    out = r.speed_sine_metrics(result)
+    out = r.sine_metrics(result)
     assert out["gain"] == pytest.approx(gain, rel=1e-9)
     assert out["phase_lag_deg"] == pytest.approx(2.0, rel=1e-9)
     expected = 1000.0 * math.sqrt(1 + gain**2 - 2 * gain * math.cos(lag))
     assert out["max_error_rpm"] == pytest.approx(expected, rel=1e-6)
     assert not any(key.startswith("load_") for key in out)
+
+
+def test_a_position_sine_gets_the_position_sine_metrics_in_mm():
+    """A position loop with a sine reference used to reach the speed sine's metrics and stop
+    with a KeyError; it gets the same figures on the rod position, in mm."""
+    t = grid(SINE_RUN + 1.0, DT)
+    w = 2 * np.pi * SINE_F
+    gain, lag = 0.95, math.radians(5.0)
+    ref = 5.0 * np.sin(w * t)
+    y = gain * 5.0 * np.sin(w * t - lag)
+    scenario = {
+        "reference": {"position_mm": [{"type": "sine", "amplitude": 5.0, "frequency_Hz": SINE_F}]},
+        "plant": {},
+        "load": {},
+    }
+    result = FakeResult(t, scenario, actuator_position_m=1e-3 * y, position_ref_m=1e-3 * ref)
+    out = r.sine_metrics(result, "position")
+    assert out["gain"] == pytest.approx(gain, rel=1e-9)
+    assert out["phase_lag_deg"] == pytest.approx(5.0, rel=1e-9)
+    expected = 5.0 * math.sqrt(1 + gain**2 - 2 * gain * math.cos(lag))
+    assert out["max_error_mm"] == pytest.approx(expected, rel=1e-6)
 
 
 def speed_sine_result(dip, tau_r, offset=0.0, spike=8.0):
@@ -302,7 +323,7 @@ def test_next_reversal():
 
 
 def test_speed_sine_recovery_up_to_the_reversal():
-    out = r.speed_sine_metrics(speed_sine_result(dip=30.0, tau_r=0.01, offset=0.5))
+    out = r.sine_metrics(speed_sine_result(dip=30.0, tau_r=0.01, offset=0.5))
     assert out["load_dip_rpm"] == pytest.approx(-30.0, rel=1e-9)
     assert out["load_recovery_band_rpm"] == pytest.approx(3.0, rel=1e-9)
     # the 8 rpm spike after the reversal at 1 s is outside the load's interval
@@ -314,7 +335,7 @@ def test_speed_sine_recovery_up_to_the_reversal():
 
 
 def test_speed_sine_offset_under_load_is_not_recovered():
-    out = r.speed_sine_metrics(speed_sine_result(dip=11.0, tau_r=0.002, offset=2.7))
+    out = r.sine_metrics(speed_sine_result(dip=11.0, tau_r=0.002, offset=2.7))
     assert out["load_recovery_band_rpm"] == pytest.approx(1.1, rel=1e-9)
     assert math.isnan(out["load_recovery_time_s"])
     assert out["load_steady_error_mean_rpm"] == pytest.approx(2.7, rel=1e-9)

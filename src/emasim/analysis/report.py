@@ -192,7 +192,7 @@ def run_metrics(result) -> dict:
     if quantity == "rudder":
         out = bench_sine_metrics(result) if shape == "sine" else bench_step_metrics(result)
     elif shape == "sine":
-        out = speed_sine_metrics(result)
+        out = sine_metrics(result, quantity)
     else:
         out = step_metrics(result, quantity)
     cost = tuning_cost(result, result.scenario["plant"]["motor"]["max_current_A"])
@@ -457,22 +457,45 @@ def _sine_frequency(scenario: dict, key: str) -> tuple[float, float]:
     return float(term["frequency_Hz"]), abs(float(term["amplitude"]))
 
 
-def speed_sine_metrics(result) -> dict:
-    """Sine of motor speed (rpm), Fig. 6."""
+# quantity -> (output column, reference column, scale to the unit, unit, reference key, floor)
+SINE_SIGNALS = {
+    "speed": (
+        "motor_speed_rad_s",
+        "speed_ref_rad_s",
+        RPM_PER_RAD_S,
+        "rpm",
+        "speed_rpm",
+        RECOVERY_FLOOR_RPM,
+    ),
+    "position": (
+        "actuator_position_m",
+        "position_ref_m",
+        1e3,
+        "mm",
+        "position_mm",
+        RECOVERY_FLOOR_MM,
+    ),
+}
+
+
+def sine_metrics(result, quantity: str = "speed") -> dict:
+    """Sine of motor speed (rpm, Fig. 6) or of rod position (mm): the largest error, the phase
+    lag and the gain of the fundamental, and the load response."""
+    column, reference, scale, unit, key, floor = SINE_SIGNALS[quantity]
     t = result.t
-    y = RPM_PER_RAD_S * result["motor_speed_rad_s"]
-    ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
-    frequency, _ = _sine_frequency(result.scenario, "speed_rpm")
+    y = scale * result[column]
+    ref = scale * result[reference]
+    frequency, _ = _sine_frequency(result.scenario, key)
     track = m.sine_tracking(t, y, ref, frequency)
     out = {
-        "max_error_rpm": track.max_abs_error,
+        f"max_error_{unit}": track.max_abs_error,
         "phase_lag_deg": track.phase_lag_deg,
         "gain": track.gain,
     }
     t_load, _ = _load_window(result)
     if t_load is not None:
         t_end = next_reversal(t, ref, t_load)
-        out.update(load_response(t, y, ref, t_load, t_end, RECOVERY_FLOOR_RPM, "rpm"))
+        out.update(load_response(t, y, ref, t_load, t_end, floor, unit))
     return {k: float(v) for k, v in out.items()}
 
 
