@@ -280,3 +280,28 @@ def test_bad_data_and_keys_get_one_line_and_exit_code_2(tmp_path, trace):
 def test_identify_is_refused_when_the_scenario_is_not_an_axis_one_from_python(trace):
     with pytest.raises(InputError, match="not an axis scenario"):
         identify("bench-step", trace)
+
+
+def test_a_series_of_traces_tracks_a_rising_friction_with_its_intervals(tmp_path):
+    """Wear tracking: three traces of an axis whose Coulomb friction rises, identified in turn
+    from the command line, give a table of each key against the cycle count."""
+    paths = []
+    for coulomb in (15.0, 18.0, 21.0):
+        folder = tmp_path / f"fc{coulomb:g}"
+        folder.mkdir()
+        friction = AxisFriction(coulomb_N=coulomb, viscous_Ns_per_m=150.0, offset_N=-2.0)
+        paths.append(synthetic_trace(folder, friction))
+    out = tmp_path / "series"
+    args = ["identify", "emps", "--method", "idim", "--out", str(out)]
+    for path, cycles in zip(paths, ("0", "5000", "10000"), strict=True):
+        args += ["--data", str(path), "--at", cycles]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    table = pd.read_csv(out / "series.csv")
+    assert list(table["at"]) == [0, 5000, 10000]
+    found = table["plant.friction.coulomb_N"]
+    assert found.to_numpy() == pytest.approx([15.0, 18.0, 21.0], rel=0.02)
+    assert (table["plant.friction.coulomb_N interval95"] > 0).all()
+    assert (out / "series.png").is_file() and len([p for p in out.iterdir() if p.is_dir()]) == 3
+    twice = [str(tmp_path / "again") if a == str(out) else a for a in args[:-1]] + ["5000"]
+    _refused(twice, "each trace needs its own")

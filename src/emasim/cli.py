@@ -799,8 +799,18 @@ def identify(
         str, typer.Argument(help='an axis scenario: emps, or a .toml path with kind = "axis"')
     ],
     data: Annotated[
-        Path, typer.Option("--data", "-d", help="the measured trace: .csv, .mat or .parquet")
+        list[Path],
+        typer.Option(
+            "--data",
+            "-d",
+            help="the measured trace: .csv, .mat or .parquet (repeatable: a series, each "
+            "identified in turn, e.g. over an actuator's life)",
+        ),
     ],
+    at: Annotated[
+        list[str] | None,
+        typer.Option("--at", help="each --data trace's date or cycle count, in order"),
+    ] = None,
     fit: Annotated[
         list[str] | None,
         typer.Option(
@@ -840,27 +850,31 @@ def identify(
 ) -> None:
     """Fit a scenario's parameters to a measured trace (output-error or IDIM-LS); write
     identified.json, the calibrated scenario.toml, traces.parquet, fit.png and report.md."""
-    from .identification.identify import default_folder, shown
+    from .identification.identify import default_folder, identify_series, shown
     from .identification.identify import identify as run_identify
     from .output import check_folder
 
+    options = {
+        "fit": fit or [],
+        "mapping": mapping or [],
+        "method": method,
+        "settings": setting or [],
+        "validate": validate or [],
+        "starts": starts,
+    }
     try:
         if out is not None:
             check_folder(out, force)  # refuse before spending the fit's time
-        result = run_identify(
-            scenario,
-            data,
-            fit=fit or [],
-            mapping=mapping or [],
-            method=method,
-            settings=setting or [],
-            validate=validate or [],
-            starts=starts,
-            out=out or default_folder(scenario),
-            force=force,
-        )
+        target = out or default_folder(scenario)
+        if len(data) > 1 or at:
+            series = identify_series(scenario, data, at, out=target, force=force, **options)
+        else:
+            result = run_identify(scenario, data[0], out=target, force=force, **options)
     except EmasimError as err:
         _fail(err)
+    if len(data) > 1 or at:
+        _print_series(series)
+        return
     if _loud():
         table = Table(title=f"{result.scenario}: identified by {result.method}")
         table.add_column("key")
@@ -884,6 +898,20 @@ def identify(
         f"identified in {result.seconds:.1f} s; wrote {result.folder}/ (identified.json, "
         "scenario.toml, traces.parquet, fit.png, report.md)"
     )
+
+
+def _print_series(series) -> None:
+    if _loud():
+        keys = list(series.runs[0].values)
+        table = Table(title="identified over the series (value ± 95 % interval)")
+        table.add_column("at")
+        for key in keys:
+            table.add_column(key.rsplit(".", 1)[-1], justify="right")
+        for _, row in series.table.iterrows():
+            cells = [f"{row[k]:.5g} ± {row[f'{k} interval95']:.2g}" for k in keys]
+            table.add_row(str(row["at"]), *cells)
+        console.print(table)
+    log.info(f"wrote {series.folder}/ (series.csv, series.png, a folder per trace)")
 
 
 @app.command("export-fmu")

@@ -1,5 +1,5 @@
-"""The figure of an identification: each measured output beside the simulated one, and the
-residual below it."""
+"""The figures of an identification: each measured output beside the simulated one with the
+residual below it, and a series' values against the trace's date or cycle count."""
 
 import numpy as np
 
@@ -31,5 +31,25 @@ def fit_figure(time: np.ndarray, measured: dict, simulated: dict, title: str):
         bottom.set_xlabel("time (s)")
         bottom.grid(True, alpha=0.3)
     fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def series_figure(table, keys: list[str]):
+    """A Figure with one panel per key: its value against ``table["at"]`` with its 95 %
+    interval as error bars."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(keys), 1, figsize=(7.0, 2.2 * len(keys)), sharex=True)
+    axes = [axes] if len(keys) == 1 else list(axes)
+    at = list(table["at"])
+    for ax, key in zip(axes, keys, strict=True):
+        ax.errorbar(at, table[key], yerr=table[f"{key} interval95"], fmt="o-", capsize=3)
+        ax.set_ylabel(key.rsplit(".", 1)[-1], fontsize=8)
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("trace (date or cycle count)")
     fig.tight_layout()
     return fig

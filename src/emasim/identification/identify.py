@@ -232,6 +232,67 @@ def identify(
     return replace(result, folder=write_result(result, Path(out), force))
 
 
+@dataclass(frozen=True)
+class Series:
+    """The identification of each trace of a series (wear tracking): ``table`` has one row per
+    trace (``at``: its date or cycle count as given, the file, its sha256, each key's value and
+    95 % half-interval, the relative errors), ``runs`` each trace's Identified."""
+
+    table: "object"  # a pandas DataFrame
+    runs: list[Identified]
+    folder: Path | None = None
+
+
+def identify_series(
+    scenario: str,
+    data: list[str | Path],
+    at: list[str] | None = None,
+    out: str | Path | None = None,
+    force: bool = False,
+    **options,
+) -> Series:
+    """:func:`identify` on each trace of ``data`` with the same keys and method (``options``:
+    its other arguments), tabulated against ``at`` (each trace's date or cycle count; its
+    place in the series by default). ``out`` holds ``series.csv``, ``series.png`` (each key
+    against ``at`` with its interval) and a folder per trace."""
+    import pandas as pd
+
+    labels = [str(i) for i in range(len(data))] if not at else [str(a) for a in at]
+    if len(labels) != len(data):
+        raise InputError(f"--at: {len(labels)} given for {len(data)} --data files; give one each")
+    if len(set(labels)) != len(labels):
+        raise InputError("--at: each trace needs its own date or cycle count")
+    runs = [identify(scenario, path, **options) for path in data]
+    rows = []
+    for label, run in zip(labels, runs, strict=True):
+        row = {"at": label, "file": run.data["file"], "sha256": run.data["sha256"]}
+        for key, value in run.values.items():
+            row[key] = value
+            row[f"{key} interval95"] = run.interval95[key]
+        row.update({f"error {name}": value for name, value in run.errors.items()})
+        rows.append(row)
+    series = Series(pd.DataFrame(rows), runs)
+    if out is None:
+        return series
+    return replace(series, folder=_write_series(series, labels, Path(out), force))
+
+
+def _write_series(series: Series, labels: list[str], out: Path, force: bool) -> Path:
+    from ..analysis.figure_process import DrawHere
+    from ..analysis.identification_plots import series_figure
+
+    def write(tmp: Path) -> None:
+        write_new(tmp / "series.csv", series.table.to_csv(index=False))
+        keys = list(series.runs[0].values)
+        DrawHere().save(lambda: series_figure(series.table, keys), tmp / "series.png")
+        for label, run in zip(labels, series.runs, strict=True):
+            folder = tmp / f"{slug(label)}-{slug(Path(run.data['file']).stem)}"
+            folder.mkdir()
+            _write_files(run, folder)
+
+    return write_folder(out, write, force=force, kind="identification-series")
+
+
 def default_folder(scenario: str) -> Path:
     """runs/<scenario>/identify-<time>."""
     return fresh_folder(RUNS_ROOT / slug(Path(scenario).stem), "identify")
@@ -283,30 +344,31 @@ def shown(name: str, value: float) -> str:
 
 def write_result(result: Identified, out: Path, force: bool) -> Path:
     """Write the result folder (module docstring) at ``out``."""
+    return write_folder(
+        out, lambda tmp: _write_files(result, tmp), force=force, kind="identification"
+    )
+
+
+def _write_files(result: Identified, folder: Path) -> None:
+    """The files of one identification (module docstring) into ``folder``."""
     import pandas as pd
 
     from ..analysis.figure_process import DrawHere
     from ..analysis.identification_plots import fit_figure
 
     outputs = [n.removeprefix("measured_") for n in result.traces if n.startswith("measured_")]
-
-    def write(tmp: Path) -> None:
-        write_new(tmp / "identified.json", json_text(result.record()))
-        write_new(tmp / "scenario.toml", result.calibrated_toml)
-        table = dict(result.traces)
-        for name in outputs:
-            table[f"residual_{name}"] = table[f"measured_{name}"] - table[f"simulated_{name}"]
-        frame = pd.DataFrame(table)
-        with new_file(tmp / "traces.parquet") as handle:
-            frame.to_parquet(handle)
-        measured = {n: result.traces[f"measured_{n}"] for n in outputs}
-        simulated = {n: result.traces[f"simulated_{n}"] for n in outputs}
-        DrawHere().save(
-            lambda: fit_figure(
-                result.traces["time_s"], measured, simulated, f"{result.scenario}: {result.method}"
-            ),
-            tmp / "fit.png",
-        )
-        write_new(tmp / "report.md", report_text(result))
-
-    return write_folder(out, write, force=force, kind="identification")
+    write_new(folder / "identified.json", json_text(result.record()))
+    write_new(folder / "scenario.toml", result.calibrated_toml)
+    table = dict(result.traces)
+    for name in outputs:
+        table[f"residual_{name}"] = table[f"measured_{name}"] - table[f"simulated_{name}"]
+    with new_file(folder / "traces.parquet") as handle:
+        pd.DataFrame(table).to_parquet(handle)
+    measured = {n: result.traces[f"measured_{n}"] for n in outputs}
+    simulated = {n: result.traces[f"simulated_{n}"] for n in outputs}
+    title = f"{result.scenario}: {result.method}"
+    DrawHere().save(
+        lambda: fit_figure(result.traces["time_s"], measured, simulated, title),
+        folder / "fit.png",
+    )
+    write_new(folder / "report.md", report_text(result))
