@@ -158,3 +158,25 @@ def test_a_controllers_design_check_is_one_warning_line(tmp_path):
     lines = [line for line in result.output.splitlines() if "eq. 37" in line]
     assert lines and all(line.startswith("warning: st-gpio: paper eq. 37") for line in lines)
     assert "UserWarning" not in result.output and "warnings.warn" not in result.output
+
+
+def test_the_compile_is_never_counted_as_simulation_time(monkeypatch):
+    """A comparison loads (or compiles) the engine and its laws before its timer starts: a
+    slow load here is the meta's compile_s, not part of simulation_wall_s."""
+    import time
+
+    from emasim.experiments import batch
+    from emasim.scenarios.loader import load_scenario
+
+    slow = 1.0
+
+    def slow_load():
+        time.sleep(slow)
+        return slow
+
+    monkeypatch.setattr(batch, "load_engine", slow_load)
+    comparison = batch.run_comparison(load_scenario("speed-step", settings=["duration_s=0.01"]))
+    assert comparison.meta["compile_s"] >= slow
+    assert comparison.meta["simulation_wall_s"] < slow
+    for result in comparison.results.values():
+        assert result.meta["compile_s"] < slow  # loaded already: about 0

@@ -104,6 +104,7 @@ app = typer.Typer(
 )
 
 FORCE_HELP = "replace an earlier emasim result there (never anything emasim did not write)"
+COMPILE_NOTICE_S = 1.0  # a load of the compiled core this long was a compile: say so once
 
 
 def _show_version(value: bool) -> None:
@@ -384,6 +385,9 @@ def run(
             else "gains: the scenario's own and the library's defaults (no controller set of "
             "the comparison uses this choice)"
         )
+    compiled = result.meta.get("compile_s", 0.0)
+    if compiled >= COMPILE_NOTICE_S:
+        log.info(f"compiled the simulation core in {compiled:.0f} s (not counted below)")
     log.info(
         f"simulated {sc.duration_s:g} s x {len(by_label)} in "
         f"{result.meta['simulation_wall_s']:.3f} s (real-time factor "

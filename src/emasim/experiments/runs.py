@@ -123,7 +123,9 @@ def run_scenario(
     result = simulate_scenario(scenario, trust_fmu, setup, progress)
     # the run that was made: a comparison's other sets are not part of it
     result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
+    compile_s = result.meta.get("compile_s", 0.0)  # the co-simulation's has none
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
+    result.meta["compile_s"] = compile_s
     result.meta["label"] = (
         label or scenario.tuning.get("controller_set") or scenario.controllers_label()
     )

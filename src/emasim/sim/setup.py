@@ -195,8 +195,13 @@ class Setup:
             trace_row=np.full(len(TRACE_COLUMNS), np.nan),
             status=np.zeros(3, dtype=np.int64),
         )
-        laws = tuple(LawAddress.of(c.function) for c in slots)
-        return RunState(model, data, laws)
+        return RunState(model, data, self.law_addresses())
+
+    def law_addresses(self) -> tuple:
+        """The slots' laws as machine-code addresses (position, speed, current), each compiled
+        (or loaded from numba's cache) the first time this process asks for it."""
+        position = self.position if self.position is not None else absent_slot()
+        return tuple(LawAddress.of(c.function) for c in (position, self.speed, self.current))
 
 
 @dataclass
