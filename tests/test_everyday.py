@@ -224,3 +224,36 @@ def test_a_choice_over_a_cascade_named_in_the_file(tmp_path):
     assert scenario.controllers.position.name == "rbf-smc"  # the cascade's, kept
     result = invoke("run", str(path), "-c", "speed=pi", "--label", "x")
     assert result.exit_code == 2 and "no controller set" in result.output
+
+
+def test_to_csv_to_mat_and_save_take_overwrite_and_never_replace_a_users_file(tmp_path):
+    """The Python API's files: CSV in the shortest text that reads back to the same floats,
+    written atomically; ``overwrite=True`` replaces emasim's own file or folder, never a
+    user's, and the refusals speak of the arguments, not of command-line flags."""
+    from scipy.io import loadmat
+
+    result = emasim.run("speed-step", label="PI", settings=[SHORT])
+    path = tmp_path / "run.csv"
+    result.to_csv(path)
+    back = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    np.testing.assert_array_equal(back, result.data)  # NaN compares equal here too
+    assert path.read_text().splitlines()[0] == ",".join(result.columns)
+    full = len(",".join([f"{1.0:.18e}"] * result.data.shape[1]))  # the old format's row
+    assert path.stat().st_size < 0.8 * full * result.data.shape[0]
+    with pytest.raises(emasim.errors.OutputError, match="pass overwrite=True to replace it"):
+        result.to_csv(path)
+    result.to_csv(path, overwrite=True)
+    mat = tmp_path / "run.mat"
+    result.to_mat(mat)
+    result.to_mat(mat, overwrite=True)
+    assert loadmat(mat)["emasim"].dtype.names[0] == "t_s"
+    mine = tmp_path / "mine.csv"
+    mine.write_text("years,of,work\n")
+    for write in (result.to_csv, result.to_mat):
+        with pytest.raises(emasim.errors.OutputError, match="emasim did not write it"):
+            write(mine, overwrite=True)
+    assert mine.read_text() == "years,of,work\n"
+    folder = result.save(tmp_path / "saved", plot=False)
+    with pytest.raises(emasim.errors.OutputError, match="pass overwrite=True to replace it"):
+        result.save(folder, plot=False)
+    assert result.save(folder, plot=False, overwrite=True) == folder

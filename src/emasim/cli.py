@@ -371,7 +371,7 @@ def run(
             for record in [result, *getattr(result, "results", {}).values()]:
                 record.meta["overrides"] = list(setting or [])  # for the plots' titles
             folder = result.save(
-                out, plot=plot, force=force, trace_format=trace_format, figures=figures
+                out, plot=plot, overwrite=force, trace_format=trace_format, figures=figures
             )
     except EmasimError as err:
         _fail(err)

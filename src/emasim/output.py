@@ -150,17 +150,21 @@ def check_parents(path: Path, what: str) -> None:
         raise OutputError(f"{what} {path}: cannot write in {parent}")
 
 
-def check_folder(path: Path, force: bool, what: str = "--out") -> None:
-    """Raise OutputError unless a result folder may be written at ``path`` (module rules)."""
+CLI_HINTS = ("add --force to replace it", "or leave --out out for a fresh folder")
+
+
+def check_folder(
+    path: Path, force: bool, what: str = "--out", hints: tuple[str, str] = CLI_HINTS
+) -> None:
+    """Raise OutputError unless a result folder may be written at ``path`` (module rules);
+    ``hints`` say how to replace it and how to get a fresh folder (the command line's
+    options, or a Python API's arguments)."""
     path = Path(path)
     check_parents(path, what)
     if is_emasim_folder(path) and force:
         _refuse_foreign(path, path, what)
     elif is_emasim_folder(path):
-        raise OutputError(
-            f"{what} {path}: holds an emasim result already; add --force to replace it, "
-            "or leave --out out for a fresh folder"
-        )
+        raise OutputError(f"{what} {path}: holds an emasim result already; {hints[0]}, {hints[1]}")
     elif os.path.lexists(path) and not _is_empty_folder(path):
         kind = "a link" if path.is_symlink() else "a file" if not path.is_dir() else "a folder"
         raise OutputError(
@@ -179,7 +183,13 @@ def _refuse_foreign(folder: Path, path: Path, what: str) -> None:
         )
 
 
-def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str) -> None:
+def check_file(
+    path: Path,
+    force: bool,
+    is_ours: Callable[[Path], bool],
+    what: str,
+    replace_hint: str = CLI_HINTS[0],
+) -> None:
     """Raise OutputError unless a file may be written at ``path`` (module rules)."""
     path = Path(path)
     check_parents(path, what)
@@ -191,7 +201,7 @@ def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: s
             "(choose another path)"
         )
     if not force:
-        raise OutputError(f"{what} {path}: exists (written by emasim); add --force to replace it")
+        raise OutputError(f"{what} {path}: exists (written by emasim); {replace_hint}")
 
 
 def _is_empty_folder(path: Path) -> bool:
@@ -282,12 +292,14 @@ def write_folder(
     unique: bool = False,
     kind: str = "run",
     what: str = "--out",
+    hints: tuple[str, str] = CLI_HINTS,
 ) -> Path:
     """Build a result folder with ``write(tmp)`` and publish it at ``path``; return where.
     ``kind`` goes into the marker. ``unique``: ``path`` is a fresh name (:func:`fresh_folder`),
-    and one another process takes meanwhile moves it on to the next suffix (``-2``...)."""
+    and one another process takes meanwhile moves it on to the next suffix (``-2``...).
+    ``what`` and ``hints`` word a refusal (:func:`check_folder`)."""
     path = Path(path)
-    check_folder(path, force, what)
+    check_folder(path, force, what, hints)
     with _build(path, kind, what) as tmp:
         write(tmp)
         write_marker(tmp, kind, files=sorted(name for name, own in _owned(tmp).items() if own))
@@ -331,11 +343,12 @@ def write_file(
     force: bool = False,
     is_ours: Callable[[Path], bool],
     what: str,
+    replace_hint: str = CLI_HINTS[0],
 ) -> Path:
     """Write ``content`` (bytes, text, or the path of a file to copy) to the file ``path``,
     built in a build folder and hard-linked into place; ``force``: module docstring."""
     path = Path(path)
-    check_file(path, force, is_ours, what)
+    check_file(path, force, is_ours, what, replace_hint)
     with _build(path, "file", what) as tmp:
         with new_file(tmp / path.name) as handle:
             if isinstance(content, Path):
@@ -345,7 +358,7 @@ def write_file(
                 handle.write(content.encode() if isinstance(content, str) else content)
         with locked(path.parent):
             if force and os.path.lexists(path):
-                check_file(path, force, is_ours, what)  # again, under the lock
+                check_file(path, force, is_ours, what, replace_hint)  # again, under the lock
                 os.replace(tmp / path.name, path)
             else:
                 try:

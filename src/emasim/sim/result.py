@@ -11,6 +11,7 @@ did not write (replacing an earlier emasim result needs ``force=True``). Without
 ``save()`` picks a fresh one, ``runs/<scenario>/<label>-<time>``.
 """
 
+import io
 import json
 import os
 import tomllib
@@ -27,7 +28,7 @@ from ..errors import DamagedResult, InputError
 from ..jsonio import json_text
 from ..manifest import verify_files
 from ..naming import RUNS_ROOT, fresh_folder, slug
-from ..output import new_file, write_folder, write_new
+from ..output import new_file, write_file, write_folder, write_new
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -121,13 +122,14 @@ class Result:
             )
         return pa.Table.from_arrays(arrays, names=list(self.columns))
 
-    def to_csv(self, path: str | Path) -> None:
-        """The traces as CSV: a header of column names (each carries its unit), one row per
-        recorded sample, full float64 precision."""
-        with new_file(path) as handle:
-            np.savetxt(handle, self.data, delimiter=",", header=",".join(self.columns), comments="")
+    def _csv(self) -> str:
+        """The traces as CSV text: a header of column names (each carries its unit), one row
+        per recorded sample, each number in the shortest text that reads back to the same
+        float64 (Python's repr; NaN as nan)."""
+        rows = (",".join(map(repr, row)) for row in self.data.tolist())
+        return ",".join(self.columns) + "\n" + "\n".join(rows) + "\n"
 
-    def to_mat(self, path: str | Path) -> None:
+    def _mat(self) -> bytes:
         """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
         per column (a column vector), ``units`` (column -> unit), ``scenario`` and ``label``."""
         from scipy.io import savemat
@@ -137,8 +139,21 @@ class Result:
         struct["units"] = {name: units.get(name, "") for name in self.columns}
         struct["scenario"] = self.scenario.get("name", "")
         struct["label"] = self.meta.get("label", "")
-        with new_file(path) as handle:
-            savemat(handle, {"emasim": struct}, oned_as="column")
+        buffer = io.BytesIO()
+        savemat(buffer, {"emasim": struct}, oned_as="column")
+        return buffer.getvalue()
+
+    def to_csv(self, path: str | Path, overwrite: bool = False) -> Path:
+        """Write the traces as CSV (:meth:`_csv`) to the file ``path``, atomically;
+        ``overwrite`` replaces a trace file emasim wrote there, never any other file."""
+        return write_file(Path(path), self._csv(), force=overwrite, is_ours=_is_trace_csv,
+                          what="path", replace_hint=OVERWRITE_HINT)  # fmt: skip
+
+    def to_mat(self, path: str | Path, overwrite: bool = False) -> Path:
+        """Write the traces as a MATLAB file (:meth:`_mat`) to the file ``path``, atomically;
+        ``overwrite`` replaces a trace file emasim wrote there, never any other file."""
+        return write_file(Path(path), self._mat(), force=overwrite, is_ours=_is_trace_mat,
+                          what="path", replace_hint=OVERWRITE_HINT)  # fmt: skip
 
     def plot(self):
         """The run's figure (emasim.analysis.plots.plot_result): a matplotlib Figure."""
@@ -164,9 +179,9 @@ class Result:
                 with new_file(path) as handle:
                     pq.write_table(self._to_arrow(), handle)
             elif trace_format == "csv":
-                self.to_csv(path)
+                write_new(path, self._csv())
             elif trace_format == "mat":
-                self.to_mat(path)
+                write_new(path, self._mat())
             else:
                 raise ValueError(
                     f"trace_format must be one of {TRACE_FORMATS}, got {trace_format!r}"
@@ -185,15 +200,15 @@ class Result:
         self,
         folder: str | Path | None = None,
         plot: bool = True,
-        force: bool = False,
+        overwrite: bool = False,
         trace_format: str = "parquet",
         figures=None,
     ) -> Path:
         """Write the run folder atomically and return its path (see :func:`default_folder`
-        when ``folder`` is None); ``force`` replaces an earlier emasim result there;
-        ``trace_format`` one of TRACE_FORMATS; ``figures`` draws the plot (see
-        :meth:`write_files`)."""
-        return _save(self, folder, plot, force, "run", trace_format, figures)
+        when ``folder`` is None); ``overwrite`` replaces an earlier emasim result there (never
+        a file emasim did not write); ``trace_format`` one of TRACE_FORMATS; ``figures`` draws
+        the plot (see :meth:`write_files`)."""
+        return _save(self, folder, plot, overwrite, "run", trace_format, figures)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
@@ -265,12 +280,12 @@ class Comparison:
         self,
         folder: str | Path | None = None,
         plot: bool = True,
-        force: bool = False,
+        overwrite: bool = False,
         trace_format: str = "parquet",
         figures=None,
     ) -> Path:
         """Write the comparison folder atomically and return its path (see :meth:`Result.save`)."""
-        return _save(self, folder, plot, force, "comparison", trace_format, figures)
+        return _save(self, folder, plot, overwrite, "comparison", trace_format, figures)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
@@ -334,6 +349,34 @@ def _drawer(figures):
     return DrawHere()
 
 
+OVERWRITE_HINT = "pass overwrite=True to replace it"
+PYTHON_HINTS = (OVERWRITE_HINT, "or folder=None for a fresh folder")
+
+
+def _is_trace_csv(path: Path) -> bool:
+    """Whether the file is a trace CSV emasim wrote: its header names trace columns only,
+    time first."""
+    from .trace import TRACE_COLUMNS  # the plant's layout: loaded only when a file is there
+
+    try:
+        with open(path) as handle:
+            header = handle.readline().strip().split(",")
+    except (OSError, UnicodeDecodeError):
+        return False
+    return header[0] == "t_s" and set(header) <= set(TRACE_COLUMNS)
+
+
+def _is_trace_mat(path: Path) -> bool:
+    """Whether the file is a trace MATLAB file emasim wrote: its one variable is the struct
+    ``emasim``."""
+    from scipy.io import whosmat
+
+    try:
+        return [name for name, *_ in whosmat(path)] == ["emasim"]
+    except Exception:  # not a MATLAB file at all, whatever scipy's reader raises
+        return False
+
+
 def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str, figures):
     check_trace_format(trace_format)
     what = "compare" if kind == "comparison" else result.meta.get("label", "run")
@@ -347,7 +390,8 @@ def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str,
         result.write_files(tmp, plot, trace_format=trace_format, figures=drawer)
         drawer.wait()  # every figure is in the folder before it is published
 
-    return write_folder(target, write, force=force, unique=unique, kind=kind)
+    return write_folder(target, write, force=force, unique=unique, kind=kind, what="folder",
+                        hints=PYTHON_HINTS)  # fmt: skip
 
 
 def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:
