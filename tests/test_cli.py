@@ -180,3 +180,19 @@ def test_the_compile_is_never_counted_as_simulation_time(monkeypatch):
     assert comparison.meta["simulation_wall_s"] < slow
     for result in comparison.results.values():
         assert result.meta["compile_s"] < slow  # loaded already: about 0
+
+
+def test_quiet_and_verbose_work_before_or_after_the_subcommand(tmp_path):
+    from emasim.cli import _global_flags_first
+
+    assert _global_flags_first(["run", "x", "-q"]) == ["-q", "run", "x"]
+    assert _global_flags_first(["run", "x", "--", "-v"]) == ["run", "x", "--", "-v"]
+    run = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.01", "--no-plot"]
+    quiet = invoke(*run, "--out", str(tmp_path / "q"), "-q")
+    assert quiet.exit_code == 0, quiet.output
+    assert "simulated" not in quiet.output and "metrics" not in quiet.output
+    verbose = invoke(*run, "--out", str(tmp_path / "v"), "--verbose")
+    assert verbose.exit_code == 0, verbose.output
+    assert "simulated in" in verbose.output and "engine loaded in" in verbose.output
+    both = invoke(*run, "-q", "-v")
+    assert both.exit_code == 2 and "give one of them" in both.output

@@ -39,13 +39,26 @@ def _say_error(message: str) -> None:
     )
 
 
+GLOBAL_FLAGS = ("-q", "--quiet", "-v", "--verbose")
+
+
+def _global_flags_first(args: list[str] | None) -> list[str]:
+    """The command line with the global flags (GLOBAL_FLAGS) moved before the subcommand, so
+    that ``emasim run X -q`` is ``emasim -q run X`` (up to a ``--``, after which every word is
+    an argument)."""
+    words = list(sys.argv[1:] if args is None else args)
+    end = words.index("--") if "--" in words else len(words)
+    flags = [w for w in words[:end] if w in GLOBAL_FLAGS]
+    return flags + [w for w in words[:end] if w not in GLOBAL_FLAGS] + words[end:]
+
+
 class _OneLineErrors(TyperGroup):
     """The command group, with every failure reduced to one line and a meaningful exit code."""
 
-    def main(self, *args, **kwargs):
+    def main(self, args=None, *rest, **kwargs):
         kwargs["standalone_mode"] = False
         try:
-            code = super().main(*args, **kwargs)
+            code = super().main(_global_flags_first(args), *rest, **kwargs)
         except EmasimError as err:
             _say_error(err)
             code = 2
@@ -99,7 +112,7 @@ app = typer.Typer(
     cls=_OneLineErrors,
     help="emasim: electromechanical actuator simulation and controller comparison.",
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion: the shell completes commands and options
     pretty_exceptions_enable=False,
 )
 
@@ -128,7 +141,9 @@ def main(
     ] = False,
     verbose: Annotated[
         bool,
-        typer.Option("--verbose", help="also the library's debug messages (each run's timing)"),
+        typer.Option(
+            "--verbose", "-v", help="also the library's debug messages (each run's timing)"
+        ),
     ] = False,
 ) -> None:
     """emasim: electromechanical actuator simulation and controller comparison."""
@@ -539,7 +554,6 @@ def study(
         list[str] | None,
         typer.Option(
             "--vary",
-            "-v",
             help="KEY=SPEC (repeatable): a list 0.05,0.1; linspace(a,b,n); geomspace(a,b,n); "
             "uniform(a,b); normal(mean,std); loguniform(a,b); integers(a,b); discrete(a,b,n); "
             "a leading * scales the scenario's value",

@@ -37,6 +37,7 @@ if TYPE_CHECKING:
 
     from ..scenarios.schema import Scenario
 
+log = logging.getLogger("emasim")  # the cluster's addresses, at debug level (emasim --verbose)
 CONNECT_TIMEOUT_S = 10
 HANDSHAKE_TIMEOUT_S = 5  # a Dask scheduler answers its identity in milliseconds
 
@@ -70,6 +71,7 @@ def dask_client(
         except (OSError, ValueError, TypeError) as err:
             raise InputError(f"--scheduler {scheduler}: cannot connect ({err})") from None
         with client:
+            log.debug(f"Dask: scheduler {scheduler}, dashboard {client.dashboard_link}")
             yield client
         return
     n = workers or workers_available()
@@ -81,6 +83,10 @@ def dask_client(
         silence_logs=logging.ERROR,
     )
     with cluster, Client(cluster) as client:
+        log.debug(
+            f"Dask: a local cluster of {n} {'processes' if processes else 'threads'}, "
+            f"scheduler {cluster.scheduler_address}, dashboard {client.dashboard_link}"
+        )
         if processes:
             from .worker_setup import LogToFile, OneLineWarnings
 

@@ -3,6 +3,7 @@
 import dataclasses
 import datetime
 import functools
+import logging
 import platform
 import shlex
 import subprocess
@@ -28,6 +29,8 @@ from ..version import __version__
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
     from ..sim.setup import Setup
+
+log = logging.getLogger("emasim")  # each run's timing, at debug level (emasim --verbose)
 
 
 def meta_of(scenario, wall_s: float) -> dict:
@@ -126,6 +129,11 @@ def run_scenario(
     compile_s = result.meta.get("compile_s", 0.0)  # the co-simulation's has none
     result.meta = meta_of(scenario, result.meta["simulation_wall_s"])
     result.meta["compile_s"] = compile_s
+    log.debug(
+        f"{scenario.name} ({label or scenario.controllers_label()}): {scenario.duration_s:g} s "
+        f"simulated in {result.meta['simulation_wall_s']:.3f} s (real-time factor "
+        f"{result.meta['real_time_factor']:.4f}), engine loaded in {compile_s:.3f} s"
+    )
     result.meta["label"] = (
         label or scenario.tuning.get("controller_set") or scenario.controllers_label()
     )
