@@ -11,12 +11,14 @@ from emasim.cli import app
 from emasim.scenarios.loader import read_scenario_file, validate_scenario
 
 README = (Path(__file__).parents[1] / "README.md").read_text()
+DOCS = Path(__file__).parents[1] / "docs"
 
 
-def blocks(language: str) -> list[str]:
-    """The fenced code blocks whose info string is ``language`` ('' for plain blocks)."""
+def blocks(language: str, text: str = README) -> list[str]:
+    """The fenced code blocks of ``text`` (the README) whose info string is ``language`` (''
+    for plain blocks)."""
     found, current, info = [], None, None
-    for line in README.splitlines(keepends=True):
+    for line in text.splitlines(keepends=True):
         if line.startswith("```"):
             if current is None:
                 current, info = [], line[3:].strip()
@@ -56,7 +58,7 @@ def test_the_realistic_bench_options_are_valid_on_a_bench_scenario():
 
 def test_the_python_examples_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    namespace: dict = {}
+    namespace: dict = {"__name__": "__main__"}  # as a script runs them
     for code in blocks("python"):
         exec(code, namespace)  # noqa: S102 - the README's own examples
     assert (tmp_path / "runs" / "wide-gap" / "result.parquet").is_file()
@@ -120,3 +122,23 @@ def test_the_metric_windows_the_readme_states_are_the_codes():
     ) in text
     assert f"over the last {100 * report.STEADY_FRACTION:g} % of the interval after it" in text
     assert f"steady statistics from {report.BENCH_STEADY_S:g} s to the end" in text
+
+
+def test_every_shell_block_of_the_readme_and_the_docs_is_valid_bash():
+    """``bash -n`` on each bash block: an unquoted ``linspace(...)`` is a syntax error there."""
+    import subprocess
+
+    pages = [Path(__file__).parents[1] / "README.md", *sorted(DOCS.glob("*.md"))]
+    found = 0
+    for page in pages:
+        for code in blocks("bash", page.read_text()):
+            found += 1
+            check = subprocess.run(["bash", "-n"], input=code, capture_output=True, text=True)
+            assert check.returncode == 0, f"{page.name}: {check.stderr}\n{code}"
+    assert found >= 5
+
+
+def test_every_python_block_of_the_docs_compiles():
+    for page in sorted(DOCS.glob("*.md")):
+        for code in blocks("python", page.read_text()):
+            compile(code, page.name, "exec")
