@@ -350,3 +350,12 @@ def test_without_the_fmi_extra_loading_an_fmu_says_how_to_install_it(monkeypatch
     monkeypatch.setitem(sys.modules, "fmpy", None)
     with pytest.raises(InputError, match=r"loading an FMU needs emasim's FMI extra \(fmpy"):
         describe_fmu(tmp_path / "m.fmu")
+
+
+def test_both_fmus_pass_fmpys_validation(plant_fmu, mechanism_fmu):
+    """fmpy's validate_fmu finds no problem: every output is among ModelStructure's
+    InitialUnknowns, which pythonfmu leaves out (emasim.sim.fmi.with_initial_unknowns)."""
+    from fmpy.validation import validate_fmu
+
+    assert validate_fmu(str(plant_fmu)) == []
+    assert validate_fmu(str(mechanism_fmu)) == []

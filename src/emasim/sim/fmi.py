@@ -230,8 +230,33 @@ def _build(path, script: str, resource_name: str, payload: dict, force: bool) ->
             )
         finally:
             sys.path[:] = saved_path
-        write_file(target, Path(built), force=force, is_ours=is_emasim_fmu, what="--out")
+        complete = with_initial_unknowns(Path(built), Path(tmp) / "complete.fmu")
+        write_file(target, complete, force=force, is_ours=is_emasim_fmu, what="--out")
     return target
+
+
+def with_initial_unknowns(built: Path, out: Path) -> Path:
+    """A copy of the FMU ``built`` whose ModelStructure lists every output among its
+    InitialUnknowns, which pythonfmu leaves out: an output is computed from the state
+    (``initial="calculated"``, FMI 2.0 section 2.2.8), so the standard requires it there;
+    no ``dependencies`` attribute means it may depend on every known."""
+    import xml.etree.ElementTree as ET  # noqa: N817 - the usual name
+    import zipfile
+
+    with zipfile.ZipFile(built) as source, zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as dest:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                root = ET.fromstring(data)
+                structure = root.find("ModelStructure")
+                outputs = structure.find("Outputs")
+                if outputs is not None and structure.find("InitialUnknowns") is None:
+                    unknowns = ET.SubElement(structure, "InitialUnknowns")
+                    for unknown in outputs.findall("Unknown"):
+                        ET.SubElement(unknowns, "Unknown", index=unknown.get("index"))
+                data = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+            dest.writestr(item, data)
+    return out
 
 
 def fmi_extra(module: str, what: str):
