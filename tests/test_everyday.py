@@ -257,3 +257,19 @@ def test_to_csv_to_mat_and_save_take_overwrite_and_never_replace_a_users_file(tm
     with pytest.raises(emasim.errors.OutputError, match="pass overwrite=True to replace it"):
         result.save(folder, plot=False)
     assert result.save(folder, plot=False, overwrite=True) == folder
+
+
+def test_no_shipped_gains_fail_the_checks_emasim_applies_to_them():
+    """Every controller set of every shipped scenario builds without a warning (the
+    super-twisting's eq. 37 check among them): what `emasim run` and `reproduce` print is
+    about the runs, never about the gains emasim ships."""
+    import warnings
+
+    from emasim.scenarios.loader import builtin_scenarios
+
+    for name in sorted(builtin_scenarios()):
+        for label, variant in load_scenario(name).variants():
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                variant.setup()
+            assert [str(w.message) for w in caught] == [], (name, label)
