@@ -385,9 +385,8 @@ def run(
                 progress.close()
             for record in [result, *getattr(result, "results", {}).values()]:
                 record.meta["overrides"] = list(setting or [])  # for the plots' titles
-            folder = result.save(
-                out, plot=plot, overwrite=force, trace_format=trace_format, figures=figures
-            )
+            folder = result.save(out, plot=plot, overwrite=force, trace_format=trace_format,
+                                 figures=figures, words="command line")  # fmt: skip
     except EmasimError as err:
         _fail(err)
     _print_metrics(by_label, f"{sc.name}: metrics")

@@ -8,8 +8,7 @@ outputs,
     r = [w_j (y_j,sim - y_j,meas) / |y_j,meas|  for each output j],
 
 by scipy.optimize.least_squares (trust-region reflective within the ranges, the Jacobian by
-forward differences of relative step ``DIFF_STEP``: larger than the encoder's quantisation
-makes the residual's response to a tiny step). ``starts`` > 1 adds starts drawn in the
+forward differences of relative step ``DIFF_STEP``). ``starts`` > 1 adds starts drawn in the
 ranges (a scrambled Sobol sequence, seeded) and keeps the best: a multi-start for a
 multimodal cost. At the optimum, the covariance s^2 (J^T J)^-1 with s^2 = |r|^2 / (N - p)
 gives each value's 95 % interval (1.96 standard deviations) and the correlations. The
@@ -153,10 +152,11 @@ def spread(jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     _, singular, vt = np.linalg.svd(jac, full_matrices=False)
     dof = max(r.size - jac.shape[1], 1)
     s2 = float(r @ r) / dof
-    seen = singular > NULL_DIRECTION * singular[0] if singular.size and singular[0] > 0 else []
+    largest = singular[0] if singular.size else 0.0
+    seen = singular > NULL_DIRECTION * largest if largest > 0.0 else np.zeros_like(singular, bool)
     v = vt[seen].T / singular[seen]
     covariance = s2 * (v @ v.T)
-    blind = np.any(np.abs(vt[~np.asarray(seen, dtype=bool)]) > NULL_DIRECTION, axis=0)
+    blind = np.any(np.abs(vt[~seen]) > NULL_DIRECTION, axis=0)
     std = np.sqrt(np.abs(np.diag(covariance)))
     std[blind] = np.inf
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -28,7 +28,7 @@ from ..errors import DamagedResult, InputError
 from ..jsonio import json_text
 from ..manifest import verify_files
 from ..naming import RUNS_ROOT, fresh_folder, slug
-from ..output import new_file, write_file, write_folder, write_new
+from ..output import CLI_HINTS, new_file, write_file, write_folder, write_new
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -203,12 +203,14 @@ class Result:
         overwrite: bool = False,
         trace_format: str = "parquet",
         figures=None,
+        words: str = "python",
     ) -> Path:
         """Write the run folder atomically and return its path (see :func:`default_folder`
         when ``folder`` is None); ``overwrite`` replaces an earlier emasim result there (never
         a file emasim did not write); ``trace_format`` one of TRACE_FORMATS; ``figures`` draws
-        the plot (see :meth:`write_files`)."""
-        return _save(self, folder, plot, overwrite, "run", trace_format, figures)
+        the plot (see :meth:`write_files`); ``words`` (WORDS) the refusals' wording: these
+        arguments', or the command line's options."""
+        return _save(self, folder, plot, overwrite, "run", trace_format, figures, words)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Result":
@@ -283,9 +285,10 @@ class Comparison:
         overwrite: bool = False,
         trace_format: str = "parquet",
         figures=None,
+        words: str = "python",
     ) -> Path:
         """Write the comparison folder atomically and return its path (see :meth:`Result.save`)."""
-        return _save(self, folder, plot, overwrite, "comparison", trace_format, figures)
+        return _save(self, folder, plot, overwrite, "comparison", trace_format, figures, words)
 
     @classmethod
     def load(cls, folder: str | Path) -> "Comparison":
@@ -350,7 +353,10 @@ def _drawer(figures):
 
 
 OVERWRITE_HINT = "pass overwrite=True to replace it"
-PYTHON_HINTS = (OVERWRITE_HINT, "or folder=None for a fresh folder")
+WORDS = {  # how a refusal names the target and says how to replace it or get a fresh one
+    "python": ("folder", (OVERWRITE_HINT, "or folder=None for a fresh folder")),
+    "command line": ("--out", CLI_HINTS),
+}
 
 
 def _is_trace_csv(path: Path) -> bool:
@@ -377,11 +383,12 @@ def _is_trace_mat(path: Path) -> bool:
         return False
 
 
-def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str, figures):
+def _save(result, folder, plot, force, kind, trace_format, figures, words):
     check_trace_format(trace_format)
-    what = "compare" if kind == "comparison" else result.meta.get("label", "run")
+    what, hints = WORDS[words]
     if folder is None:
-        target, unique = default_folder(result.scenario, what), True
+        named = "compare" if kind == "comparison" else result.meta.get("label", "run")
+        target, unique = default_folder(result.scenario, named), True
     else:
         target, unique = Path(folder), False
     drawer = _drawer(figures)
@@ -390,8 +397,8 @@ def _save(result, folder, plot: bool, force: bool, kind: str, trace_format: str,
         result.write_files(tmp, plot, trace_format=trace_format, figures=drawer)
         drawer.wait()  # every figure is in the folder before it is published
 
-    return write_folder(target, write, force=force, unique=unique, kind=kind, what="folder",
-                        hints=PYTHON_HINTS)  # fmt: skip
+    return write_folder(target, write, force=force, unique=unique, kind=kind, what=what,
+                        hints=hints)  # fmt: skip
 
 
 def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:
