@@ -273,3 +273,14 @@ def test_no_shipped_gains_fail_the_checks_emasim_applies_to_them():
                 warnings.simplefilter("always")
                 variant.setup()
             assert [str(w.message) for w in caught] == [], (name, label)
+
+
+def test_a_result_is_a_python_control_time_response():
+    result = emasim.run("speed-step", label="PI", settings=[SHORT])
+    response = result.to_timeresponse(["motor_speed_rad_s"], inputs=["speed_ref_rad_s"])
+    np.testing.assert_array_equal(response.time, result.t)
+    np.testing.assert_array_equal(response.outputs, result["motor_speed_rad_s"])
+    np.testing.assert_array_equal(response.inputs, result["speed_ref_rad_s"])
+    assert response.output_labels == ["motor_speed_rad_s"]
+    with pytest.raises(emasim.errors.InputError, match="no_such_column; the columns: t_s"):
+        result.to_timeresponse(["no_such_column"])

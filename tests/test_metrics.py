@@ -397,3 +397,26 @@ def test_integral_absolute_error_and_total_variation():
     square = np.where(np.floor(np.round(t * 10, 9)) % 2 == 0, 1.0, -1.0)
     assert m.total_variation_rate(t, square) == pytest.approx(20 * 2 / 2.0)
     assert m.total_variation_rate(t, 3 * t) == pytest.approx(3.0)
+
+
+def test_control_step_info_agrees_with_python_controls_step_info():
+    """On a step from 0 (python-control's assumption), every key agrees with
+    ``control.step_info`` to the interpolation between samples: within one sample in time,
+    within the response's change over one sample in level."""
+    import control
+
+    t = np.linspace(0.0, 5.0, 5001)
+    dt = t[1] - t[0]
+    y = np.asarray(control.step_response(control.tf([25.0], [1.0, 4.0, 25.0]), t).outputs)
+    theirs = control.step_info(y, timepts=t, final_output=1.0, SettlingTimeThreshold=0.05,
+                               RiseTimeLimits=(0.05, 0.95))  # fmt: skip
+    ours = m.control_step_info(t, y, 0.0, 1.0, SettlingTimeThreshold=0.05,
+                               RiseTimeLimits=(0.05, 0.95))  # fmt: skip
+    assert set(ours) == set(theirs)
+    slope = float(np.max(np.abs(np.diff(y))))
+    for key in ("RiseTime", "SettlingTime", "PeakTime"):
+        assert ours[key] == pytest.approx(theirs[key], abs=1.01 * dt), key
+    for key in ("SettlingMin", "SettlingMax", "Peak", "SteadyStateValue"):
+        assert ours[key] == pytest.approx(theirs[key], abs=slope), key
+    assert ours["Overshoot"] == pytest.approx(theirs["Overshoot"], abs=100 * slope)
+    assert ours["Undershoot"] == theirs["Undershoot"] == 0.0

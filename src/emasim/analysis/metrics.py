@@ -451,6 +451,58 @@ def step_info(
     return info
 
 
+def control_step_info(
+    t: ArrayLike,
+    y: ArrayLike,
+    initial: float | None = None,
+    final: float | None = None,
+    SettlingTimeThreshold: float = 0.02,  # noqa: N803 - python-control's option names
+    RiseTimeLimits: tuple[float, float] = (0.1, 0.9),  # noqa: N803
+) -> dict[str, float]:
+    """:func:`step_info` under python-control's key names and options (``control.step_info``).
+
+    Parameters
+    ----------
+    t, y, initial, final : as :func:`step_info`
+    SettlingTimeThreshold : float
+        The settling band as a fraction of the step, default 2 %.
+    RiseTimeLimits : tuple of float
+        The rise time's fractions of the step, default (0.1, 0.9).
+
+    Returns
+    -------
+    dict of str to float
+        ``RiseTime``, ``SettlingTime``, ``SettlingMin`` and ``SettlingMax`` (the extremes of
+        ``y`` from the rise's upper limit on), ``Overshoot`` and ``Undershoot`` (% of the
+        step, beyond the final level and back past the initial one), ``Peak`` (the largest
+        ``|y|``, as python-control reports it), ``PeakTime`` (from ``t[0]``) and
+        ``SteadyStateValue`` (``final``). Unlike python-control's, which measures a response
+        from 0, the step goes from ``initial`` (default ``y[0]``); from 0 both agree to the
+        interpolation between samples (``tests/test_metrics.py``).
+    """
+    t = _time(t)
+    y = _signal("y", y, t)
+    initial, final = _step_levels(y, initial, final)
+    low, high = RiseTimeLimits
+    step = final - initial
+    progress = (y - initial) / step
+    upper = int(np.argmax(progress >= high)) if np.any(progress >= high) else y.size - 1
+    k = int(np.argmax(np.abs(y)))
+    return {
+        "RiseTime": rise_time(t, y, initial, final, low, high),
+        "SettlingTime": settling_time(
+            t, y, final=final, initial=initial, band=SettlingTimeThreshold
+        ),
+        "SettlingMin": float(np.min(y[upper:])),
+        "SettlingMax": float(np.max(y[upper:])),
+        "Overshoot": overshoot(y, initial, final),
+        "Undershoot": float(max(0.0, -100.0 * np.min(progress))),
+        "Peak": float(abs(y[k])),
+        "PeakTime": float(t[k] - t[0]),
+        "SteadyStateValue": float(final),
+    }
+
+
 # --------------------------------------------------------------------------- windowed metrics
 
 

@@ -110,6 +110,27 @@ class Result:
 
         return pd.DataFrame(self.data, columns=list(self.columns))
 
+    def to_timeresponse(self, outputs: list[str], inputs: list[str] = ()):
+        """The traces as python-control's ``TimeResponseData``: the named columns as its
+        outputs and inputs (each labelled by its column name, which carries the unit), on
+        the recorded time. Unknown names are refused in one line naming the columns."""
+        import control
+
+        unknown = [name for name in (*outputs, *inputs) if name not in self.columns]
+        if unknown or not outputs:
+            raise InputError(
+                f"outputs/inputs: {', '.join(unknown) or 'no output given'}; the columns: "
+                f"{', '.join(self.columns)}"
+            )
+        return control.TimeResponseData(
+            self.t,
+            np.array([self[name] for name in outputs]),
+            inputs=np.array([self[name] for name in inputs]) if inputs else None,
+            output_labels=list(outputs),
+            input_labels=list(inputs) if inputs else None,
+            title=f"{self.scenario.get('name', 'run')}: {self.meta.get('label', '')}",
+        )
+
     def _to_arrow(self) -> pa.Table:
         """One float64 column per signal, made from the data's own buffers: no copy when each
         column is contiguous (the engine's traces are), and none of pyarrow's conversion from
