@@ -55,7 +55,7 @@ def test_run_writes_the_whole_folder(run_folder):
     recorded = {"simulation_wall_s", "real_time_factor", "created_utc"}
     assert recorded <= set(meta)
     metrics = json.loads((out / "metrics.json").read_text())
-    assert metrics["settling_time_s"] > 0 and "settling_time_s" in output
+    assert metrics["settling_time_s"] > 0 and "settling time" in output
     assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
 
 
@@ -196,3 +196,19 @@ def test_quiet_and_verbose_work_before_or_after_the_subcommand(tmp_path):
     assert "simulated in" in verbose.output and "engine loaded in" in verbose.output
     both = invoke(*run, "-q", "-v")
     assert both.exit_code == 2 and "give one of them" in both.output
+
+
+def test_the_metrics_table_fits_80_columns_and_says_why_a_metric_is_nan(tmp_path, monkeypatch):
+    from emasim import cli
+
+    monkeypatch.setattr(cli.console, "width", 80)
+    result = invoke("run", "speed-step", "--set", "duration_s=0.6", "--out", str(tmp_path / "r"),
+                    "--no-plot")  # fmt: skip
+    assert result.exit_code == 0, result.output
+    table = result.stdout.splitlines()
+    assert max(len(line) for line in table) <= 80 and "…" not in result.stdout
+    assert any("load recovery" in line and "│ s " in line for line in table)
+    comparison = Comparison.load(tmp_path / "r")
+    for label, run in comparison.results.items():
+        for key, reason in run.meta.get("undefined_metrics", {}).items():
+            assert f"nan: {label}, {key}: {' '.join(reason.split()[:4])}" in " ".join(table)

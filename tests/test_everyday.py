@@ -80,7 +80,7 @@ def test_quiet_prints_no_table_and_verbose_conflicts(tmp_path):
     assert quiet.output.strip() == ""
     assert (out / "metrics.json").exists()
     loud = invoke("run", "speed-step", "-l", "PI", "--set", SHORT, "--out", str(tmp_path / "l"))
-    assert "rise_time_s" in loud.output and "wrote" in loud.output
+    assert "rise time" in loud.output and "wrote" in loud.output
     both = invoke("--quiet", "--verbose", "list")
     assert both.exit_code == 2 and "--quiet and --verbose" in both.output
 

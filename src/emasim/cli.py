@@ -297,19 +297,30 @@ def _print_warnings(result) -> None:
             log.warning(f"{label}: {line}")
 
 
-def _print_metrics(by_label: dict[str, dict], title: str) -> None:
-    """One row per metric, one column per run."""
+def _print_metrics(by_label: dict[str, dict], title: str, reasons: dict | None = None) -> None:
+    """One row per metric, one column per run: the metric's name in words (breakable where
+    the terminal is narrow, never cut) and its unit apart, read from the name's end; each
+    ``nan`` then printed with its reason (``reasons``: label -> metric -> why undefined)."""
     if not _loud():
         return
+    from .analysis.units import SUFFIXES, unit_of
+
     table = Table(title=title)
-    table.add_column("metric")
+    table.add_column("metric", overflow="fold", ratio=1)
+    table.add_column("unit", no_wrap=True)
     for label in by_label:
-        table.add_column(label, justify="right")
+        table.add_column(label, justify="right", no_wrap=True)
     keys = list(dict.fromkeys(k for m in by_label.values() for k in m))
     for key in keys:
+        unit = unit_of(key)
+        suffix = next((sfx for sfx, u in SUFFIXES if u == unit and key.endswith(sfx)), "")
+        words = key.removesuffix(suffix).replace("_", " ")
         cells = [by_label[label].get(key) for label in by_label]
-        table.add_row(key, *("" if v is None else f"{v:.4g}" for v in cells))
+        table.add_row(words, unit, *("" if v is None else f"{v:.4g}" for v in cells))
     console.print(table)
+    for label, why in (reasons or {}).items():
+        for key, reason in why.items():
+            console.print(f"nan: {label}, {key}: {reason}", highlight=False, markup=False)
 
 
 @app.command()
@@ -389,7 +400,9 @@ def run(
                                  figures=figures, words="command line")  # fmt: skip
     except EmasimError as err:
         _fail(err)
-    _print_metrics(by_label, f"{sc.name}: metrics")
+    runs = getattr(result, "results", None) or {result.meta["label"]: result}
+    reasons = {label: r.meta.get("undefined_metrics", {}) for label, r in runs.items()}
+    _print_metrics(by_label, f"{sc.name}: metrics", reasons)
     _print_warnings(result)
     if label or controller:
         origin = sc.tuning.get("gains_from")
