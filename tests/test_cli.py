@@ -52,7 +52,7 @@ def test_run_writes_the_whole_folder(run_folder):
         assert column in frame.columns
     meta = json.loads((out / "meta.json").read_text())
     assert meta["emasim_version"] and meta["seed"] == 0
-    recorded = {"simulation_wall_s", "real_time_factor", "created_utc"}
+    recorded = {"simulation_wall_s", "real_time_factor", "created_utc", "emasim_source_sha256"}
     assert recorded <= set(meta)
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["settling_time_s"] > 0 and "settling time" in output
@@ -212,3 +212,24 @@ def test_the_metrics_table_fits_80_columns_and_says_why_a_metric_is_nan(tmp_path
     for label, run in comparison.results.items():
         for key, reason in run.meta.get("undefined_metrics", {}).items():
             assert f"nan: {label}, {key}: {' '.join(reason.split()[:4])}" in " ".join(table)
+
+
+def test_the_source_digest_names_the_code_for_any_install(tmp_path):
+    """meta.json's emasim_source_sha256 is the digest of the package's source, which an
+    installed copy has as much as a checkout: the same files give the same digest, one changed
+    byte another."""
+    import shutil
+    from pathlib import Path
+
+    import emasim
+    from emasim.experiments.runs import meta_of
+    from emasim.numba_cache import source_hash
+    from emasim.scenarios.loader import load_scenario
+
+    meta = meta_of(load_scenario("speed-step"), 1.0)
+    package = Path(emasim.__file__).parent
+    assert meta["emasim_source_sha256"] == source_hash(package)
+    copy = Path(shutil.copytree(package, tmp_path / "emasim"))
+    assert source_hash(copy) == meta["emasim_source_sha256"]
+    (copy / "version.py").write_text((copy / "version.py").read_text() + "\n")
+    assert source_hash(copy) != meta["emasim_source_sha256"]

@@ -21,6 +21,7 @@ from ..analysis.report import (
     run_warnings,
     undefined_metrics,
 )
+from ..numba_cache import source_hash
 from ..sim.cosim import check_fmu_trust, cosimulate
 from ..sim.engine import simulate
 from ..sim.result import Result
@@ -34,11 +35,12 @@ log = logging.getLogger("emasim")  # each run's timing, at debug level (emasim -
 
 
 def meta_of(scenario, wall_s: float) -> dict:
-    """What a saved result needs to be regenerated and judged: versions (emasim, its git commit
-    when it runs from a git checkout, Python, numpy, scipy, numba), the platform, the command
-    line, the seed and the timings."""
+    """What a saved result needs to be regenerated and judged: versions (emasim, the digest of
+    its source for any install, its git commit when it runs from a git checkout, Python,
+    numpy, scipy, numba), the platform, the command line, the seed and the timings."""
     return {
         "emasim_version": __version__,
+        "emasim_source_sha256": _source_digest(),
         **source_commit(),
         "seed": scenario.seed,
         "scenario": scenario.name,
@@ -64,6 +66,13 @@ def _platform() -> dict:
 
 
 @functools.cache
+@functools.cache
+def _source_digest() -> str:
+    """The digest of the package's source (emasim.numba_cache.source_hash): it names the code
+    that ran, for any install, with or without git."""
+    return source_hash()
+
+
 def source_commit() -> dict:
     """``git_commit`` (and ``git_dirty``: uncommitted changes to the package) of the checkout
     emasim's source is tracked in; {} for an installed copy (not tracked by any git tree, even
