@@ -463,7 +463,10 @@ def control_step_info(
 
     Parameters
     ----------
-    t, y, initial, final : as :func:`step_info`
+    t, y : array_like
+        Time (s) and response, as :func:`step_info` takes them.
+    initial, final : float, optional
+        The levels before and after the step, as :func:`step_info` takes them.
     SettlingTimeThreshold : float
         The settling band as a fraction of the step, default 2 %.
     RiseTimeLimits : tuple of float
