@@ -1,9 +1,23 @@
 """The documentation site's own code: its mkdocs hook renders the docstrings' Sphinx roles as
-plain code, and flags any it leaves."""
+plain code, and flags any it leaves; the scenario reference page is the schema's."""
 
 from helpers import module_at
 
 hooks = module_at("docs/hooks.py")
+reference = module_at("docs/scenario_reference.py")
+
+
+def test_the_scenario_reference_page_is_the_schemas():
+    """Run ``python docs/scenario_reference.py`` after changing the scenario schema."""
+    assert reference.PAGE.read_text() == reference.render()
+
+
+def test_the_reference_shows_each_keys_range_and_default():
+    page = reference.render()
+    assert "| `duration_s` | float | required | > 0, <= 3600 |" in page
+    assert "## `axis scenario.loop`: `AxisLoopConfig`" in page
+    for model in ("SpeedSuperTwisting", "PositionPID", "LinkageParams", "Step", "AxisFriction"):
+        assert f": `{model}`" in page, model
 
 
 def test_roles_become_plain_code_the_last_name_for_a_tilde():
