@@ -25,6 +25,7 @@ BASE = {
     "jsonio",
     "manifest",
     "numba_cache",
+    "results",
     "version",
 }
 ALLOWED = {

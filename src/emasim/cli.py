@@ -944,6 +944,70 @@ def _print_series(series) -> None:
     log.info(f"wrote {series.folder}/ (series.csv, series.png, a folder per trace)")
 
 
+runs_app = typer.Typer(help="The results emasim wrote under a folder: list them, prune old ones.")
+app.add_typer(runs_app, name="runs")
+RUNS_ROOT_HELP = "the folder to look in (default: runs)"
+
+
+@runs_app.command("list")
+def runs_list(
+    root: Annotated[Path, typer.Argument(help=RUNS_ROOT_HELP)] = Path("runs"),
+) -> None:
+    """List every emasim result under a folder, oldest first: its kind, age and size."""
+    from .results import find
+
+    try:
+        found = find(root)
+    except EmasimError as err:
+        _fail(err)
+    table = Table(title=f"emasim results under {root}")
+    for name, justify in (("result", "left"), ("kind", "left"), ("written", "left")):
+        table.add_column(name, justify=justify, overflow="fold")
+    table.add_column("MB", justify="right")
+    for result in found:
+        written = time.strftime("%Y-%m-%d %H:%M", time.localtime(result.written))
+        table.add_row(str(result.folder), result.kind, written, f"{result.size / 1e6:.3g}")
+    console.print(table)
+    log.info(f"{len(found)} results, {sum(r.size for r in found) / 1e6:.3g} MB")
+
+
+@runs_app.command("prune")
+def runs_prune(
+    root: Annotated[Path, typer.Argument(help=RUNS_ROOT_HELP)] = Path("runs"),
+    older_than: Annotated[
+        str | None, typer.Option("--older-than", help="only results older than this: 12h, 7d, 2w")
+    ] = None,
+    keep: Annotated[
+        int | None, typer.Option("--keep", help="keep this many newest results of each folder")
+    ] = None,
+    yes: Annotated[bool, typer.Option("--yes", help="remove them (without it: a dry run)")] = False,
+) -> None:
+    """Remove old emasim results (a dry run unless --yes): only folders holding emasim's marker,
+    and of them only emasim's own files; a result holding a file of yours stays whole."""
+    from .results import choose, find, parse_age, remove
+
+    try:
+        chosen = choose(find(root), parse_age(older_than) if older_than else None, keep)
+    except EmasimError as err:
+        _fail(err)
+    freed = 0
+    for result in chosen:
+        if not yes:
+            console.print(f"would remove {result.folder} ({result.size / 1e6:.3g} MB)")
+            continue
+        kept = remove(result.folder)
+        if kept:
+            log.warning(f"{result.folder}: kept, it holds files emasim did not write ({kept[0]})")
+        else:
+            freed += result.size
+            console.print(f"removed {result.folder}")
+    if yes:
+        log.info(f"{len(chosen)} results chosen; freed {freed / 1e6:.3g} MB")
+    else:
+        total = sum(r.size for r in chosen) / 1e6
+        log.info(f"{len(chosen)} results chosen; would free {total:.3g} MB; add --yes to remove")
+
+
 @app.command("export-fmu")
 def export_fmu(
     out: Annotated[
