@@ -117,6 +117,10 @@ app = typer.Typer(
 )
 
 FORCE_HELP = "replace an earlier emasim result there (never anything emasim did not write)"
+ForceOption = Annotated[bool, typer.Option("--force", help=FORCE_HELP)]
+SettingOption = Annotated[
+    list[str] | None, typer.Option("--set", "-s", help="dotted.key=value override")
+]
 COMPILE_NOTICE_S = 1.0  # a load of the compiled core this long was a compile: say so once
 
 
@@ -354,7 +358,7 @@ def run(
             "--out", "-o", help="run folder (default: a fresh runs/SCENARIO/WHAT-YYYYmmdd-HHMMSS)"
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
     trust_fmu: Annotated[
         bool,
         typer.Option(
@@ -474,7 +478,7 @@ def tune(
         Path | None,
         typer.Option(help="tuned scenario file (default a fresh runs/tune/SCENARIO-TIME.toml)"),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
     seed: Annotated[int, typer.Option(min=0, max=2**32 - 1, help="sampler seed")] = 0,
 ) -> None:
     """Tune every controller set of a scenario under the same cost and rule (Optuna): trials
@@ -695,7 +699,7 @@ def reproduce(
         list[str] | None,
         typer.Option("--only", help="run only this experiment (repeatable)"),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
     ablation: Annotated[
         bool,
         typer.Option(help="re-run the bench experiments as the bench's elements are added"),
@@ -769,16 +773,14 @@ def acceptance(
         list[str] | None,
         typer.Option("--label", "-l", help="test only this controller set (repeatable)"),
     ] = None,
-    setting: Annotated[
-        list[str] | None, typer.Option("--set", "-s", help="dotted.key=value override")
-    ] = None,
+    setting: SettingOption = None,
     out: Annotated[
         Path | None,
         typer.Option(
             "--out", "-o", help="datasheet folder (default: a fresh runs/acceptance/SCENARIO-TIME)"
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
 ) -> None:
     """Run the actuator acceptance battery (frequency response, threshold, stiffness, rate and
     load) for each controller set; write datasheet.json, report.html and the figures."""
@@ -867,16 +869,14 @@ def identify(
     starts: Annotated[
         int, typer.Option("--starts", help="output-error starts (the first from IDIM-LS)")
     ] = 1,
-    setting: Annotated[
-        list[str] | None, typer.Option("--set", "-s", help="dotted.key=value override")
-    ] = None,
+    setting: SettingOption = None,
     out: Annotated[
         Path | None,
         typer.Option(
             "--out", "-o", help="result folder (default: a fresh runs/SCENARIO/identify-TIME)"
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
 ) -> None:
     """Fit a scenario's parameters to a measured trace (output-error or IDIM-LS); write
     identified.json, the calibrated scenario.toml, traces.parquet, fit.png and report.md."""
@@ -1022,7 +1022,7 @@ def export_fmu(
     mechanism: Annotated[
         bool, typer.Option("--mechanism", help="the linkage alone, its rod velocity driven")
     ] = False,
-    force: Annotated[bool, typer.Option("--force", help=FORCE_HELP)] = False,
+    force: ForceOption = False,
 ) -> None:
     """Write the plant (drive + rudder stage or linkage) as an FMI 2.0 co-simulation FMU.
 
