@@ -161,25 +161,31 @@ def test_a_controllers_design_check_is_one_warning_line(tmp_path):
 
 
 def test_the_compile_is_never_counted_as_simulation_time(monkeypatch):
-    """A comparison loads (or compiles) the engine and its laws before its timer starts: a
-    slow load here is the meta's compile_s, not part of simulation_wall_s."""
-    import time
+    """A comparison loads (or compiles) the engine and its laws before its timer starts. On a
+    clock that moves only while the engine loads (no wall time is read), the load is the
+    meta's compile_s and none of it is in simulation_wall_s."""
+    import types
 
     from emasim.experiments import batch
     from emasim.scenarios.loader import load_scenario
+    from emasim.sim import engine
 
-    slow = 1.0
+    clock = [0.0]
+    fake_time = types.SimpleNamespace(perf_counter=lambda: clock[0])
+    load_s = 100.0
 
     def slow_load():
-        time.sleep(slow)
-        return slow
+        clock[0] += load_s
+        return load_s
 
+    monkeypatch.setattr(batch, "time", fake_time)
+    monkeypatch.setattr(engine, "time", fake_time)
     monkeypatch.setattr(batch, "load_engine", slow_load)
     comparison = batch.run_comparison(load_scenario("speed-step", settings=["duration_s=0.01"]))
-    assert comparison.meta["compile_s"] >= slow
-    assert comparison.meta["simulation_wall_s"] < slow
+    assert comparison.meta["compile_s"] == load_s
+    assert comparison.meta["simulation_wall_s"] == 0.0
     for result in comparison.results.values():
-        assert result.meta["compile_s"] < slow  # loaded already: about 0
+        assert result.meta["compile_s"] == 0.0 and result.meta["simulation_wall_s"] == 0.0
 
 
 def test_quiet_and_verbose_work_before_or_after_the_subcommand(tmp_path):
