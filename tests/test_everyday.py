@@ -247,12 +247,13 @@ def test_to_csv_to_mat_and_save_take_overwrite_and_never_replace_a_users_file(tm
     result.to_mat(mat)
     result.to_mat(mat, overwrite=True)
     assert loadmat(mat)["emasim"].dtype.names[0] == "t_s"
-    mine = tmp_path / "mine.csv"
-    mine.write_text("years,of,work\n")
-    for write in (result.to_csv, result.to_mat):
-        with pytest.raises(emasim.errors.OutputError, match="emasim did not write it"):
-            write(mine, overwrite=True)
-    assert mine.read_text() == "years,of,work\n"
+    for text in ("years,of,work\n", "t_s,motor_speed_rad_s\n0.0,my notes\n"):
+        mine = tmp_path / "mine.csv"
+        mine.write_text(text)
+        for write in (result.to_csv, result.to_mat):
+            with pytest.raises(emasim.errors.OutputError, match="emasim did not write it"):
+                write(mine, overwrite=True)
+        assert mine.read_text() == text
     folder = result.save(tmp_path / "saved", plot=False)
     with pytest.raises(emasim.errors.OutputError, match="pass overwrite=True to replace it"):
         result.save(folder, plot=False)

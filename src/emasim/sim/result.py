@@ -381,27 +381,36 @@ WORDS = {  # how a refusal names the target and says how to replace it or get a 
 
 
 def _is_trace_csv(path: Path) -> bool:
-    """Whether the file is a trace CSV emasim wrote: its header names trace columns only,
-    time first."""
+    """Whether the file has the form of a trace CSV emasim writes: a header of distinct trace
+    columns in the trace's order, time first, then rows of exactly that many numbers. A bare
+    CSV carries no manifest, so this is its form, not a proof: a copy of an emasim export
+    whose numbers a user edited has it too, and ``overwrite=True`` replaces such a file."""
     from .trace import TRACE_COLUMNS  # the plant's layout: loaded only when a file is there
 
     try:
         with open(path) as handle:
             header = handle.readline().strip().split(",")
-    except (OSError, UnicodeDecodeError):
+            order = [TRACE_COLUMNS.index(name) for name in header]
+            if header[0] != "t_s" or order != sorted(set(order)):
+                return False
+            data = np.loadtxt(handle, delimiter=",", ndmin=2)
+    except (OSError, UnicodeDecodeError, ValueError):
         return False
-    return header[0] == "t_s" and set(header) <= set(TRACE_COLUMNS)
+    return data.shape[1] == len(header) or data.size == 0
 
 
 def _is_trace_mat(path: Path) -> bool:
-    """Whether the file is a trace MATLAB file emasim wrote: its one variable is the struct
-    ``emasim``."""
-    from scipy.io import whosmat
+    """Whether the file has the form of a trace MATLAB file emasim writes: its one variable
+    is the struct ``emasim``, holding ``t_s``, ``units``, ``scenario`` and ``label`` (its
+    form, as for :func:`_is_trace_csv`, not a proof)."""
+    from scipy.io import loadmat
 
     try:
-        return [name for name, *_ in whosmat(path)] == ["emasim"]
+        struct = loadmat(path, variable_names=["emasim"])["emasim"]
+        names = set(struct.dtype.names or ())
     except Exception:  # not a MATLAB file at all, whatever scipy's reader raises
         return False
+    return {"t_s", "units", "scenario", "label"} <= names
 
 
 def _save(result, folder, plot, force, kind, trace_format, figures, words):
