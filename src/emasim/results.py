@@ -9,6 +9,7 @@ when nothing in it is foreign (a file emasim did not write, or one changed since
 result stays whole, and is reported. Nothing else is ever removed.
 """
 
+import json
 import os
 import re
 import time
@@ -35,8 +36,6 @@ class Found:
 
 
 def _kind(folder: Path) -> str:
-    import json
-
     try:
         return str(json.loads((folder / MARKER).read_text()).get("kind", "?"))
     except (OSError, ValueError, AttributeError):

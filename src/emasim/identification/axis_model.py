@@ -38,9 +38,9 @@ class AxisModel:
     """An axis scenario (its raw table, so that candidate values are validated as a file's
     would be) and the measured trace it is identified against."""
 
-    def __init__(self, raw: dict, source: str, trace: Trace):
+    def __init__(self, raw: dict, source: str, trace: Trace, scenario: AxisScenario | None = None):
         self.raw, self.source, self.trace = raw, source, trace
-        self.scenario = validate_axis(raw, source)
+        self.scenario = validate_axis(raw, source) if scenario is None else scenario
         self.motion = idim.bandpass(trace.signals["position_m"], trace.sample_period_s)
         period = self.scenario.loop.sample_period_s
         if abs(trace.sample_period_s - period) > SAMPLING_TOLERANCE * period:
@@ -65,7 +65,7 @@ class AxisModel:
         scenario's map updated with ``mapping``."""
         scenario = validate_axis(raw, source)
         trace = load_trace(data, SIGNALS, REQUIRED, mapping, scenario.identify.map)
-        return cls(raw, source, trace)
+        return cls(raw, source, trace, scenario)
 
     def check_keys(self, keys: list[Key]) -> None:
         """Refuse, in one line, a key that is not a number of the scenario or whose range

@@ -100,23 +100,27 @@ def output_error(
     seed: int = 0,
 ) -> Fit:
     """Minimise |residuals(values)|^2 over the keys' ranges from ``start`` (module
-    docstring). A candidate whose simulation diverges scores a residual of 1 per sample."""
+    docstring). A candidate whose simulation diverges scores a residual of 1 per sample (the
+    start itself must simulate: its error is raised)."""
     from scipy.optimize import least_squares
     from scipy.stats import qmc
 
     low = np.array([k.low for k in keys])
     high = np.array([k.high for k in keys])
     started = time.perf_counter()
-    size = residuals(np.clip(start, low, high)).size
-    count = 0
+    size, count = None, 0
 
     def guarded(values):
-        nonlocal count
+        nonlocal count, size
         count += 1
         try:
-            return residuals(values)
+            r = residuals(values)
         except EmasimError:
+            if size is None:
+                raise
             return np.ones(size)
+        size = r.size
+        return r
 
     points = [np.clip(start, low, high)]
     if starts > 1:
