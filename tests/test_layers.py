@@ -26,6 +26,7 @@ BASE = {
     "manifest",
     "numba_cache",
     "results",
+    "toml_text",
     "version",
 }
 ALLOWED = {

@@ -51,6 +51,7 @@ from .errors import InputError, SimulationDiverged
 from .experiments.runs import simulate_scenario
 from .search_rules import Budget, bound_side, converged, widened
 from .sim.cosim import check_runnable
+from .toml_text import laid_over
 
 DIVERGED_COST = 1e3
 LOOPS = ("position", "speed")
@@ -186,40 +187,12 @@ def is_tuned_scenario(path: Path) -> bool:
 def tuned_toml(tuned_raw: dict, name: str, original: str = "") -> str:
     """The text of a tuned scenario file: emasim's header line, then the scenario file's own
     text (``original``) with the tuned table laid over it, so that its comments and layout
-    stay (tomlkit); only the values that changed are rewritten."""
-    import tomlkit
-
+    stay (emasim.toml_text); only the values that changed are rewritten."""
     if original.startswith(TUNED_HEADER):  # re-tuning a tuned file: one header
         original = original.partition("\n")[2]
-    document = tomlkit.parse(original)
-    _lay_over(document, tuned_raw)
-    return f"{TUNED_HEADER} {name} with tuned gains (see [tuning])\n" + tomlkit.dumps(document)
-
-
-def _lay_over(table, values: dict) -> None:
-    """Make the tomlkit ``table`` hold ``values``, keeping every item (and its comments) whose
-    value is unchanged: tables and arrays of tables of the same length are entered, other
-    values replaced, keys that ``values`` lacks removed."""
-    for key in [k for k in table if k not in values]:
-        del table[key]
-    for key, value in values.items():
-        old = table.get(key)
-        if isinstance(value, dict) and isinstance(old, dict):
-            _lay_over(old, value)
-        elif _tables(value) and _tables(old) and len(old) == len(value):
-            for item, new in zip(old, value, strict=True):
-                _lay_over(item, new)
-        elif old is None or _plain(old) != value:
-            table[key] = value
-
-
-def _tables(value) -> bool:
-    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
-
-
-def _plain(value):
-    """A tomlkit item as plain Python data."""
-    return value.unwrap() if hasattr(value, "unwrap") else value
+    return f"{TUNED_HEADER} {name} with tuned gains (see [tuning])\n" + laid_over(
+        original, tuned_raw
+    )
 
 
 @dataclass

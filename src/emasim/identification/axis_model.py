@@ -74,14 +74,18 @@ class AxisModel:
             for value in (key.low, key.high):
                 self.with_values({key.path: value}, what=f"--fit {key.path}")
 
-    def with_values(self, values: dict[str, float], what: str = "--fit") -> AxisScenario:
-        """The scenario with the dotted keys set to ``values``, validated."""
+    def raw_with(self, values: dict[str, float], what: str = "--fit") -> dict:
+        """A copy of the scenario's raw table with the dotted keys set to ``values``."""
         raw = copy.deepcopy(self.raw)
         for path, value in values.items():
             if isinstance(raw_value(raw, path), dict | list | str | bool):
                 raise InputError(f"{what}: '{path}' is not a number of the scenario")
             set_key(raw, path, float(value), what)
-        return validate_axis(raw, f"{what} {self.source}")
+        return raw
+
+    def with_values(self, values: dict[str, float], what: str = "--fit") -> AxisScenario:
+        """The scenario with the dotted keys set to ``values``, validated."""
+        return validate_axis(self.raw_with(values, what), f"{what} {self.source}")
 
     def simulate(self, scenario: AxisScenario, ideal_reading: bool = False) -> dict:
         """The simulated trace (emasim.sim.axis_loop.COLUMNS) from the measured inputs; with

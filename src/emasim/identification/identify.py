@@ -27,7 +27,8 @@ from ..jsonio import json_text
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import new_file, write_folder, write_new
 from ..scenarios.axis_scenario import is_axis_scenario, read_axis_raw
-from ..scenarios.loader import set_key, setting_value
+from ..scenarios.loader import apply_setting
+from ..toml_text import laid_over
 from ..version import __version__
 from .axis_model import AxisModel, raw_value
 from .data import parse_map
@@ -103,26 +104,15 @@ def _correlations(paths: list[str], matrix: np.ndarray) -> dict[str, dict[str, f
     }
 
 
-def calibrated_text(text: str, values: dict, data: str, sha256: str) -> str:
-    """The scenario's text with the dotted keys set to ``values`` (tomlkit keeps the rest, its
-    comments included) under a first line saying so."""
-    import tomlkit
-
-    document = tomlkit.parse(text)
-    for path, value in values.items():
-        table = document
-        *parents, last = path.split(".")
-        for part in parents:
-            if part not in table:
-                table[part] = tomlkit.table()
-            table = table[part]
-        table[last] = value
+def calibrated_text(text: str, calibrated: dict, keys: list[str], data: str, sha256: str) -> str:
+    """The scenario's text with the table ``calibrated`` laid over it (emasim.toml_text: its
+    comments kept) under a first line naming the identified ``keys`` and the data."""
     header = (
         f"# Calibrated by emasim identify from {data} (sha256 {sha256}): "
-        f"{', '.join(values)} hold the identified values (identified.json); the comments "
+        f"{', '.join(keys)} hold the identified values (identified.json); the comments "
         "below are the original scenario's.\n"
     )
-    return header + tomlkit.dumps(document)
+    return header + laid_over(text, calibrated)
 
 
 def on_bound(keys: list[Key], values: dict[str, float]) -> dict[str, str]:
@@ -181,9 +171,8 @@ def identify(
     if starts < 1:
         raise InputError(f"--starts {starts}: give at least 1")
     raw, source, text = read_axis_raw(str(scenario))
-    changed = dict(setting_value(item) for item in settings)
-    for key, value in changed.items():
-        set_key(raw, key, value, "--set")
+    for setting in settings:
+        apply_setting(raw, setting)
     columns = parse_map(list(mapping))
     model = AxisModel.read(raw, source, data, columns)
     chosen = method or model.scenario.identify.method
@@ -219,7 +208,7 @@ def identify(
         idim=estimate,
         fit=result_fit,
         calibrated_toml=calibrated_text(
-            text, {**changed, **values}, str(model.trace.path), model.trace.sha256
+            text, model.raw_with(values), list(values), str(model.trace.path), model.trace.sha256
         ),
         traces={
             "time_s": model.trace.signals["time_s"],
