@@ -17,6 +17,8 @@ from typing import Annotated
 
 import typer
 from rich.console import Console
+from rich.highlighter import NullHighlighter
+from rich.logging import RichHandler
 from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
@@ -158,31 +160,56 @@ def main(
     _configure_logging(logging.WARNING if quiet else logging.DEBUG if verbose else logging.INFO)
 
 
-class _ConsoleHandler(logging.Handler):
-    """Log records as lines on stderr (rich), warnings marked as such."""
+class _LineHandler(RichHandler):
+    """rich's log handler on stderr, a record a line as the command line prints it: no time,
+    level or path columns (nor the grid that pads them to the terminal's width), a warning
+    marked ``warning:``, the message never read as markup."""
 
-    def emit(self, record: logging.LogRecord) -> None:
-        text = self.format(record)
-        if record.levelno >= logging.WARNING:
-            err_console.print(f"[bold yellow]warning:[/] {escape(text)}", highlight=False)
-        else:
-            err_console.print(text, highlight=False, markup=False)
+    def __init__(self) -> None:
+        super().__init__(
+            console=err_console,
+            show_time=False,
+            show_level=False,
+            show_path=False,
+            markup=True,
+            highlighter=NullHighlighter(),
+            keywords=[],
+        )
+        self.setFormatter(_MarkedFormatter())
+
+    def render(self, *, record, traceback, message_renderable):
+        return message_renderable
+
+
+class _MarkedFormatter(logging.Formatter):
+    """The record's message, escaped for rich's markup, after ``warning:`` at WARNING and
+    above."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        text = escape(super().format(record))
+        return f"[bold yellow]warning:[/] {text}" if record.levelno >= logging.WARNING else text
 
 
 def _configure_logging(level: int) -> None:
-    """The ``emasim`` logger's level and one handler to stderr (replaced on every command);
-    Python warnings (a controller's design check, say) become the same one-line warnings."""
+    """The ``emasim`` logger's level and one handler to stderr (replaced on every command).
+    Python warnings (a controller's design check, say) are captured into logging
+    (``logging.captureWarnings``) and shown by the same handler as one ``warning:`` line: their
+    message, without the source line or the category."""
     import warnings
 
-    log.handlers[:] = [_ConsoleHandler()]
+    log.handlers[:] = [_LineHandler()]
     log.setLevel(level)
     log.propagate = False
-    warnings.showwarning = _show_warning
+    captured = logging.getLogger("py.warnings")
+    captured.handlers[:] = log.handlers
+    captured.propagate = False
+    warnings.formatwarning = _warning_text
+    logging.captureWarnings(True)
 
 
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """A Python warning as one ``warning:`` line: its message, without the source line."""
-    log.warning(str(message))
+def _warning_text(message, category, filename, lineno, line=None) -> str:
+    """``warnings.formatwarning`` for the captured warnings: the message alone."""
+    return str(message)
 
 
 def _loud() -> bool:
