@@ -285,3 +285,62 @@ def test_the_open_loop_closes_into_the_closed_loop_and_has_margins(case):
 def test_what_has_no_linear_form_is_refused(name, controllers, settings, options, match):
     with pytest.raises(InputError, match=match):
         linearize(load_scenario(name, controllers=controllers, settings=settings), **options)
+
+
+def simulated_compliance(frequency_Hz, force_N=50.0) -> complex:
+    """x/F of the fed-back position over a rod-force sine from a stepped-sine run of the
+    CASE on position-step, the reference held at zero."""
+    periods = math.ceil(FIT_S * frequency_Hz)
+    duration = SETTLE_S + periods / frequency_Hz
+    sine = f"{{type='sine', amplitude={force_N}, frequency_Hz={frequency_Hz}}}"
+    settings = [
+        "reference.position_mm=[{type='constant', value=0.0}]",
+        f"load.rod_force_N=[{sine}]",
+        f"duration_s={duration}",
+    ]
+    run = scenario("position-step", CASE_CONTROLLERS, CASE + settings)
+    result = simulate(run.setup())
+    t = np.asarray(result["t_s"])
+    window = t >= duration - periods / frequency_Hz - 1e-9
+    u, y = (np.asarray(result[c])[window] for c in ("rod_load_N", "measured_position_m"))
+    return response(t[window], u, y, frequency_Hz)
+
+
+CASE_CONTROLLERS, CASE = POSITION_CASES["pid-elements-rod"]
+
+
+def test_the_load_input_is_the_simulations_compliance():
+    """input="rod_force_N" gives the closed loop's compliance x/F (the reference held): zero at
+    DC under integral action, and within GAIN_DB and PHASE_DEG of rod-force sines simulated on
+    the linear configuration with the compliance, the anchorage and the rudder shaft."""
+    s = scenario("position-step", CASE_CONTROLLERS, CASE)
+    model = linearize(s, input="rod_force_N")
+    assert (model.input_labels, model.output_labels) == (["rod_force_N"], ["measured_position_m"])
+    assert control.dcgain(model) == pytest.approx(0.0, abs=1e-12)
+    frequencies = np.geomspace(2.0, 40.0, 3)
+    expected = np.ravel(control.frequency_response(model, 2 * np.pi * frequencies).complex)
+    rows = []
+    for f, h_model in zip(frequencies, expected, strict=True):
+        ratio = simulated_compliance(f) / h_model
+        rows.append((f, 20 * math.log10(abs(ratio)), math.degrees(np.angle(ratio))))
+    assert_within_tolerance(rows)
+
+
+def test_the_ports_are_chosen_only_where_they_mean_something():
+    """output= picks a reading of the closed loop; input/output with the plant, the open loop
+    or the discrete loop, or names that do not exist, are refused in one line."""
+    s = scenario("position-step", *POSITION_CASES["pid-rod"])
+    current = linearize(s, output="iq_A")
+    assert current.output_labels == ["iq_A"] and current.input_labels == ["position_ref_m"]
+    assert linearize(s, loop="plant").input_labels == ["vd", "vq", "rod_force_N"]
+    for kwargs, match in (
+        ({"input": "torque"}, "input must be one of reference, rod_force_N"),
+        ({"output": "rudder"}, "output must be one of id_A"),
+        ({"loop": "plant", "input": "rod_force_N"}, "loop='plant' has its own"),
+        ({"discrete": True, "output": "iq_A"}, "discrete=True has its own"),
+    ):
+        with pytest.raises(InputError, match=match):
+            linearize(s, **kwargs)
+    speed = scenario("speed-step", ["speed=pi"], [])
+    with pytest.raises(InputError, match="output must be one of id_A, iq_A, motor_speed_rad_s,"):
+        linearize(speed, output="measured_position_m")

@@ -6,8 +6,8 @@ operating point and closes it with the controllers' linear forms. SI units; ever
 deviation from the operating point.
 
 Plant. A = d rhs / dx over the states that move (emasim.plant.actuator.active_states),
-B = d rhs / d(vd, vq), C = d y / dx for the readings y = (id, iq, motor speed, the position the
-loop closes on: emasim.sim.engine.fed_back_position of the noiseless readings
+B = d rhs / d(vd, vq, rod force), C = d y / dx for the readings y = (id, iq, motor speed, the
+position the loop closes on: emasim.sim.engine.fed_back_position of the noiseless readings
 emasim.plant.sensors.true_values), by central differences (emasim.small_signal: each step
 a fixed multiple of its state's integration tolerance, or 1e-6 of its value, if larger). A
 central difference is the derivative where the right-hand side is smooth, and at a kink (a
@@ -91,6 +91,7 @@ from .small_signal import READINGS, operating_point, plant_model, small_signal_p
 
 GAPS = ("closed", "as is")
 LOOPS = ("closed", "open", "plant")
+PORT_INPUTS = ("reference", "rod_force_N")
 
 
 def linearize(
@@ -103,6 +104,8 @@ def linearize(
     loop: str = "closed",
     broken_at: str | None = None,
     discrete: bool = False,
+    input: str = "reference",
+    output: str | None = None,
 ) -> control.StateSpace:
     """The loop of ``scenario`` as a continuous-time state-space model (module docstring).
 
@@ -117,15 +120,22 @@ def linearize(
     broken_at : where loop="open" cuts: "position" or "speed" (the inner loop, the outer one
         closed); default the outermost feedback.
     discrete : the closed loop at the control rate instead (emasim.discrete_loop).
+    input : the closed loop's input: "reference" (the position or speed reference) or
+        "rod_force_N" (a rod force, N, positive opposing extension, the references held: the
+        loop's compliance x/F for the position output).
+    output : the closed loop's output, one of the plant's readings: "id_A", "iq_A",
+        "motor_speed_rad_s" or (in a position loop) "measured_position_m"; default the one
+        the outermost loop closes on.
 
     Returns
     -------
     control.StateSpace. "closed", one input and one output: for a position reference, from
     ``position_ref_m`` (m) to ``measured_position_m`` (m: x_L - x_h on the rod sensor, the rod
     position of the rudder encoder's angle, K theta_m on the motor encoder); for a speed
-    reference, from ``speed_ref_rad_s`` to ``motor_speed_rad_s`` (rad/s). "open": from the
-    fed-back reading to the plant's (same unit). "plant": (vd_V, vq_V) -> (id_A, iq_A,
-    motor_speed_rad_s, measured_position_m). Its plant states are named as the simulation's.
+    reference, from ``speed_ref_rad_s`` to ``motor_speed_rad_s`` (rad/s); with ``input`` and
+    ``output``, from that input to that reading. "open": from the fed-back reading to the
+    plant's (same unit). "plant": (vd, vq, rod_force_N) -> (id_A, iq_A, motor_speed_rad_s,
+    measured_position_m). Its plant states are named as the simulation's.
 
     Raises
     ------
@@ -133,6 +143,7 @@ def linearize(
     not continuous at the operating point.
     """
     _refuse(scenario, gaps, loop, at_s)
+    _refuse_ports(scenario, loop, discrete, input, output)
     if broken_at not in (None, "speed", "position") or (
         broken_at == "position" and scenario.controllers.position is None
     ):
@@ -186,14 +197,20 @@ def linearize(
             pid_law(law, "position_ref", fed["measured_position_m"], "speed_ref", "position_pid")
         )
         references = ["position_ref", "position_ref_rate", "position_ref_accel"]
-        output, labels = "measured_position_m", ("position_ref_m", "measured_position_m")
+        reference = "position_ref_m"
     else:
         references = ["speed_ref", "speed_ref_rate"]
-        output, labels = "motor_speed_rad_s", ("speed_ref_rad_s", "motor_speed_rad_s")
+        reference = "speed_ref_rad_s"
+    output = output or READINGS[len(plant.output_labels) - 1]
     ignore_inputs = ["speed_ref_accel"]  # the engine gives the speed loop no acceleration
     if loop == "open":
-        ignore_inputs += references
+        ignore_inputs += references + ["rod_force_N"]
         references, output = [fed[cut]], cut
+    elif input == "rod_force_N":  # the references held
+        ignore_inputs += references
+        references, reference = ["rod_force_N"], "rod_force_N"
+    else:
+        ignore_inputs.append("rod_force_N")
     closed = control.interconnect(
         blocks,
         inplist=references,
@@ -212,11 +229,20 @@ def linearize(
             states=closed.state_labels,
             name=f"{scenario.name}-open-loop-{broken}",
         )
+    states = closed.state_labels
+    if reference != "rod_force_N":
+        try:
+            closed = control.ss(*with_rates(closed))
+        except ArithmeticError as err:
+            raise InputError(f"linearize: output={output!r}: {err}; choose another output") from err
     return control.ss(
-        *with_rates(closed),
-        inputs=[labels[0]],
-        outputs=[labels[1]],
-        states=closed.state_labels,
+        closed.A,
+        closed.B,
+        closed.C,
+        closed.D,
+        inputs=[reference],
+        outputs=[output],
+        states=states,
         name=f"{scenario.name}-linear",
     )
 
@@ -247,6 +273,23 @@ def _refuse(scenario: Scenario, gaps: str, loop: str, at_s: float | None) -> Non
         raise InputError(
             f"linearize: the position controller '{c.position.name}' has no linear form; "
             "use position=pid or position=pi"
+        )
+
+
+def _refuse_ports(scenario, loop: str, discrete: bool, input: str, output: str | None) -> None:
+    """InputError for an input or output the model asked for cannot have: they choose the
+    continuous closed loop's ports (the plant has all of them, the open loop its cut)."""
+    if input not in PORT_INPUTS:
+        raise InputError(f"linearize: input must be one of {', '.join(PORT_INPUTS)}, got {input!r}")
+    outputs = READINGS if scenario.controllers.position is not None else READINGS[:3]
+    if output is not None and output not in outputs:
+        raise InputError(f"linearize: output must be one of {', '.join(outputs)}, got {output!r}")
+    chosen = input != "reference" or output is not None
+    if chosen and (loop != "closed" or discrete):
+        what = "discrete=True" if discrete else f"loop={loop!r}"
+        raise InputError(
+            f"linearize: input and output choose the continuous closed loop's ports; "
+            f"{what} has its own (leave them out)"
         )
 
 

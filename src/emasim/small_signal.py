@@ -1,9 +1,10 @@
 """The plant's small-signal model, from the simulated plant itself (emasim.linear).
 
-A = d rhs / dx over the states that move (:func:`moving_states`), B = d rhs / d(vd, vq) and
-C = d y / dx for the readings the loops close on (:data:`READINGS`), by central differences of
-the generated right-hand side (emasim.plant.assembly) with steps of STEP_TOLERANCES times each
-state's integration tolerance (or 1e-6 of its value, if larger). At a kink the central
+A = d rhs / dx over the states that move (:func:`moving_states`), B = d rhs / d(vd, vq, rod
+force) and C = d y / dx for the readings the loops close on (:data:`READINGS`), by central
+differences of the generated right-hand side (emasim.plant.assembly) with steps of
+STEP_TOLERANCES times each state's integration tolerance (or 1e-6 of its value, if larger), the
+rod force's ROD_FORCE_STEP_N (the right-hand side is affine in it). At a kink the central
 difference is the mean of the one-sided slopes (the describing function of a small sinusoid
 about the point); at a jump, the slope of the smooth side; where both sides jump, InputError
 (:func:`difference`). The operating point is the steady state at a motor speed
@@ -28,6 +29,9 @@ from .sim.engine import EngineRun, fed_back_position
 STEP_TOLERANCES = 1e3  # a state's difference step, in its integration tolerances
 CONTINUITY = 10.0  # a column whose difference grows this much at a tenth of the step: a jump
 READINGS = ("id_A", "iq_A", "motor_speed_rad_s", "measured_position_m")  # the plant's outputs
+INPUTS = ("vd", "vq", "rod_force_N")  # the plant's inputs: V, V, and N opposing extension
+ROD_LOAD = 3  # the rod force's place in the plant's inputs (vd, vq, motor, rod, rudder load)
+ROD_FORCE_STEP_N = 1.0  # its difference step (the right-hand side is affine in it)
 
 
 def small_signal_plant(params: np.ndarray, gaps: str, friction: bool) -> np.ndarray:
@@ -114,21 +118,26 @@ def with_states(x: np.ndarray, states: list[int], z: np.ndarray) -> np.ndarray:
 
 
 def jacobians(setup, p, x0, u0, t0, states):
-    """(A, B over (vd, vq), C of the readings) at (x0, u0) and the loads at t0, over the
-    moving ``states``."""
+    """(A, B over (vd, vq, rod force), C of the readings) at (x0, u0) and the loads at t0,
+    over the moving ``states``."""
     inputs0 = np.concatenate([u0, loads_at(setup, t0)])
 
     def at(z):
         return with_states(x0, states, z)
 
+    def with_inputs(v):
+        out = inputs0.copy()
+        out[[0, 1, ROD_LOAD]] = v
+        return out
+
     names = [A.STATE_NAMES[i] for i in states]
     z0, steps = x0[states], steps_for(x0, states)
     a = difference(lambda z: rates(p, at(z), inputs0)[states], z0, steps, names, names)
     b = difference(
-        lambda v: rates(p, x0, np.concatenate([v, inputs0[2:]]))[states],
-        np.asarray(u0, dtype=float),
-        np.full(2, 1e-3),
-        ["vd", "vq"],
+        lambda v: rates(p, x0, with_inputs(v))[states],
+        inputs0[[0, 1, ROD_LOAD]],
+        np.array([1e-3, 1e-3, ROD_FORCE_STEP_N]),
+        list(INPUTS),
         names,
     )
     c = difference(lambda z: readings(setup, p, at(z)), z0, steps, names, list(READINGS))
@@ -219,9 +228,9 @@ def state_at(setup, at_s: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def plant_model(setup, p, x0, u0, t0, position: bool) -> control.StateSpace:
-    """The plant linearised at (x0, u0) and the loads at t0: inputs (vd, vq), outputs (id,
-    iq, motor speed, and in a position loop the fed-back position); a speed loop's states
-    less the rigid motion."""
+    """The plant linearised at (x0, u0) and the loads at t0: inputs (vd, vq, rod force),
+    outputs (id, iq, motor speed, and in a position loop the fed-back position); a speed
+    loop's states less the rigid motion."""
     states = moving_states(p)
     a, b, c = jacobians(setup, p, x0, u0, t0, states)
     names = [A.STATE_NAMES[i] for i in states]
@@ -229,4 +238,4 @@ def plant_model(setup, p, x0, u0, t0, position: bool) -> control.StateSpace:
         theta = states.index(A.X_THETA)
         a, b, c, names = less_rigid(a, b, c[:3], rigid_motion(a, theta), theta, names)
     outputs = list(READINGS[: c.shape[0]])
-    return control.ss(a, b, c, 0, inputs=["vd", "vq"], outputs=outputs, states=names, name="plant")
+    return control.ss(a, b, c, 0, inputs=list(INPUTS), outputs=outputs, states=names, name="plant")
