@@ -10,6 +10,7 @@ from pydantic import ValidationError
 
 from emasim.signals import (
     ZERO,
+    Chirp,
     Constant,
     Ramp,
     Sine,
@@ -92,6 +93,8 @@ def test_ramp_and_table_rates():
         lambda: Sine(amplitude=1.0, frequency_Hz=0.0),
         lambda: Step(final=math.nan),
         lambda: Step(final=1.0, time_s=-1.0),
+        lambda: Chirp(amplitude=1.0, start_Hz=2.0, end_Hz=1.0, duration_s=5.0),
+        lambda: Chirp(amplitude=1.0, start_Hz=1.0, end_Hz=2.0, duration_s=0.5),  # < 1 cycle
     ],
 )
 def test_bad_terms_are_rejected(make):
@@ -110,6 +113,7 @@ def test_the_numpy_evaluator_agrees_with_the_compiled_one():
             Sine(amplitude=3.0, frequency_Hz=0.7, phase_deg=20.0, offset=0.2, start_s=0.5),
             Ramp(slope_per_s=2.0, start_s=0.3, end_s=2.1),
             Table(time_s=[0.2, 0.9, 1.7, 2.5], values=[0.0, 3.0, -1.0, 2.0]),
+            Chirp(amplitude=2.0, start_Hz=0.5, end_Hz=4.0, start_s=0.4, duration_s=2.0),
         ],
         1.5,
     )
@@ -117,3 +121,30 @@ def test_the_numpy_evaluator_agrees_with_the_compiled_one():
     compiled = values(sig, t)
     assert np.max(np.abs(signal_values(sig, t) - compiled)) <= 1e-12 * np.max(np.abs(compiled))
     assert np.all(signal_values(ZERO, t) == 0.0)
+
+
+def test_a_chirp_sweeps_its_band_in_whole_cycles():
+    """The log sweep against its definition: its phase is the integral of its frequency
+    start_Hz exp((t - start_s) / L), which reaches end_Hz at the sweep's end; it lasts the
+    longest whole number of cycles within duration_s, so it starts and ends at 0, and it is 0
+    outside the sweep. Derivatives against finite differences of the compiled value."""
+    chirp = Chirp(amplitude=2.0, start_Hz=0.5, end_Hz=20.0, start_s=1.0, duration_s=10.0)
+    sweep = chirp.sweep_s
+    cycles = 10.0 * 19.5 / math.log(40.0)
+    assert chirp.cycles == math.floor(cycles) and 10.0 - sweep < 10.0 / cycles
+    sig = encode([chirp], 3.0)
+    t = np.linspace(1.0, 1.0 + sweep, 20001)
+    frequency = 0.5 * np.exp((t - 1.0) * math.log(40.0) / sweep)
+    phase = np.concatenate(([0.0], np.cumsum(np.diff(t) * 0.5 * (frequency[1:] + frequency[:-1]))))
+    expected = 6.0 * np.sin(2 * math.pi * phase)
+    assert np.max(np.abs(values(sig, t) - expected)) < 1e-5 * 6.0
+    assert frequency[-1] == pytest.approx(20.0)
+    assert phase[-1] == pytest.approx(chirp.cycles, abs=1e-6)
+    assert values(sig, [0.5, 1.0 + sweep, 1.0 + sweep + 1e-3]) == pytest.approx(0.0, abs=1e-9)
+    h = 1e-6
+    for time in (1.3, 4.0, 1.0 + 0.9 * sweep):
+        y, dy, ddy = signal_derivatives(sig, time)
+        minus, plus = signal_value(sig, time - h), signal_value(sig, time + h)
+        scale = 6.0 * (2 * math.pi * 20.0) ** 2
+        assert dy == pytest.approx((plus - minus) / (2 * h), abs=1e-6 * scale)
+        assert ddy == pytest.approx((plus - 2 * y + minus) / h**2, abs=1e-3 * scale)

@@ -1,4 +1,5 @@
-"""Time signals as first-class values: constant, step, sine, ramp and table, and sums of them.
+"""Time signals as first-class values: constant, step, sine, ramp, table and chirp, and sums of
+them.
 
 References, load torques and disturbances are all signals. A signal is a list of terms that add
 up; each term is a small validated model (usable from scripts and from scenario TOML files,
@@ -24,6 +25,7 @@ KIND_STEP = 1.0
 KIND_SINE = 2.0
 KIND_RAMP = 3.0
 KIND_TABLE = 4.0
+KIND_CHIRP = 5.0
 
 
 MAX_TIME_S = 1e6  # every time of a signal lies in [0, MAX_TIME_S]
@@ -129,7 +131,67 @@ class Table(_Term):
         return [KIND_TABLE, 2.0 * n, *self.time_s, *(v * scale for v in self.values)]
 
 
-Term = Annotated[Constant | Step | Sine | Ramp | Table, Field(discriminator="type")]
+class Chirp(_Term):
+    """A logarithmic sweep, from start_s on:
+
+        y(t) = amplitude sin(phi(t)),  phi(t) = 2 pi start_Hz L (exp((t - start_s) / L) - 1),
+
+    with L = T / ln(end_Hz / start_Hz): its frequency start_Hz exp((t - start_s) / L) rises
+    from start_Hz to end_Hz over the sweep's length T, and it spends the same time in each
+    decade. T is the longest whole number of cycles within duration_s (phi(T) = 2 pi L
+    (end_Hz - start_Hz), a multiple of 2 pi), so y starts and ends at 0; y is 0 outside the
+    sweep.
+    """
+
+    type: Literal["chirp"] = "chirp"
+    amplitude: Value
+    start_Hz: float = Field(gt=0, le=1e6)
+    end_Hz: float = Field(gt=0, le=1e6)
+    start_s: Time = 0.0
+    duration_s: float = Field(gt=0, le=MAX_TIME_S)
+
+    @model_validator(mode="after")
+    def _sweeps(self):
+        if self.end_Hz <= self.start_Hz:
+            raise ValueError(f"end_Hz must be > start_Hz ({self.start_Hz}), got {self.end_Hz}")
+        if self.cycles < 1:
+            raise ValueError(
+                f"duration_s must hold one whole cycle of the sweep, at least "
+                f"{self.log_ratio / (self.end_Hz - self.start_Hz):.6g} s, got {self.duration_s}"
+            )
+        return self
+
+    @property
+    def log_ratio(self) -> float:
+        return math.log(self.end_Hz / self.start_Hz)
+
+    @property
+    def cycles(self) -> int:
+        """The sweep's whole cycles: L (end_Hz - start_Hz) at T = duration_s, rounded down."""
+        return math.floor(self.duration_s * (self.end_Hz - self.start_Hz) / self.log_ratio)
+
+    @property
+    def sweep_s(self) -> float:
+        """T: the sweep's length (s), its whole cycles' time."""
+        return self.cycles * self.log_ratio / (self.end_Hz - self.start_Hz)
+
+    def packed(self, scale: float) -> list[float]:
+        length = self.sweep_s / self.log_ratio
+        return [
+            KIND_CHIRP,
+            5.0,
+            self.amplitude * scale,
+            2.0 * math.pi * self.start_Hz,
+            length,
+            self.start_s,
+            self.start_s + self.sweep_s,
+        ]
+
+
+Term = Annotated[Constant | Step | Sine | Ramp | Table | Chirp, Field(discriminator="type")]
+TERM_TYPES = frozenset(
+    member.model_fields["type"].default for member in (Constant, Step, Sine, Ramp, Table, Chirp)
+)
 
 
 def lookup_table(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -173,6 +235,11 @@ def signal_values(sig: np.ndarray, t) -> np.ndarray:
         elif kind == KIND_RAMP:
             slope, start, end = q
             y += slope * (np.clip(t, start, end) - start)
+        elif kind == KIND_CHIRP:
+            amp, omega, length, start, end = q
+            inside = (t >= start) & (t <= end)
+            x = np.where(inside, t - start, 0.0)
+            y += np.where(inside, amp * np.sin(omega * length * np.expm1(x / length)), 0.0)
         else:
             m = n // 2
             y += np.interp(t, q[:m], q[m:])
@@ -223,7 +290,23 @@ def _term_value(kind, sig, j, n, t):
         if t >= end:
             return slope * (end - start)
         return slope * (t - start)
+    if kind == KIND_CHIRP:
+        return _chirp(sig, j, t)[0]
     return _table(sig, j, n // 2, t)[0]
+
+
+@njit(cache=True, error_model="numpy")
+def _chirp(sig, j, t):
+    """(y, dy/dt, d2y/dt2) of the chirp term whose parameters (amplitude, 2 pi start_Hz, L,
+    start, end) start at sig[j]: phi = w0 L (exp(x / L) - 1), phi' = w0 exp(x / L),
+    phi'' = phi' / L, x = t - start; 0 outside the sweep."""
+    amp, omega, length, start, end = sig[j], sig[j + 1], sig[j + 2], sig[j + 3], sig[j + 4]
+    if t < start or t > end:
+        return 0.0, 0.0, 0.0
+    rate = omega * math.exp((t - start) / length)
+    phase = omega * length * math.expm1((t - start) / length)
+    s, c = math.sin(phase), math.cos(phase)
+    return amp * s, amp * c * rate, amp * (c * rate / length - s * rate * rate)
 
 
 @njit(cache=True, error_model="numpy")
@@ -240,6 +323,8 @@ def _term_derivatives(kind, sig, j, n, t):
             return y, sig[j], 0.0
     elif kind == KIND_TABLE:
         return y, _table(sig, j, n // 2, t)[1], 0.0
+    elif kind == KIND_CHIRP:
+        return _chirp(sig, j, t)
     return y, 0.0, 0.0
 
 

@@ -14,6 +14,7 @@ from pydantic import BaseModel, ValidationError
 
 from ..control.registry import CASCADES, CONTROLLERS
 from ..errors import InputError
+from ..signals import TERM_TYPES
 from .schema import Scenario
 
 MAX_FILE_BYTES = 16 * 2**20  # a scenario with a long table signal is a few MB
@@ -264,9 +265,7 @@ def describe_errors(err: ValidationError, root: type[BaseModel] | None = None) -
     return lines
 
 
-UNION_TAGS = {"constant", "step", "sine", "ramp", "table"} | {
-    name for names in CONTROLLERS.values() for name in names
-}
+UNION_TAGS = TERM_TYPES | {name for names in CONTROLLERS.values() for name in names}
 
 
 def _is_union_tag(part) -> bool:
