@@ -20,11 +20,12 @@
 * The command writes datasheet.json with every figure the issue names, and the figures obey
   the drive's physics: a rate-limited output cannot pass the large-signal band beyond what
   its rate allows, and a rated load cannot make it faster.
-* The README's datasheet is docs/datasheet.json rendered (docs/readme_datasheet.py), and that
-  sheet holds bench-step's two controller sets.
+* docs/acceptance.md's datasheet is docs/datasheet.json rendered (docs/readme_datasheet.py),
+  and that sheet holds bench-step's two controller sets.
 * Bad input is one line and exit code 2.
 """
 
+import csv
 import json
 import math
 from pathlib import Path
@@ -36,8 +37,9 @@ from helpers import module_at
 from typer.testing import CliRunner
 
 from emasim import linearize
-from emasim.analysis.frequency import gain_dB
+from emasim.analysis.frequency import first_crossing, gain_dB
 from emasim.cli import app
+from emasim.errors import InputError
 from emasim.experiments import acceptance as ac
 from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario
@@ -213,11 +215,119 @@ def test_bad_input_is_one_line(args, needle, tmp_path):
     assert not (tmp_path / "x").exists()
 
 
-def test_the_readme_datasheet_is_the_stored_sheet_rendered():
+def test_the_documented_datasheet_is_the_stored_sheet_rendered():
     """Regenerate with ``emasim acceptance bench-step --out DIR`` and
     ``python docs/readme_datasheet.py DIR``."""
     module = module_at("docs/readme_datasheet.py")
     sheet = json.loads((ROOT / "docs" / "datasheet.json").read_text())
-    assert module.block_of((ROOT / "README.md").read_text()) == module.render(sheet)
+    assert module.block_of(module.PAGE.read_text()) == module.render(sheet)
     assert sheet["scenario"] == "bench-step"
     assert list(sheet["sets"]) == [v.label for v in load_scenario("bench-step").compare]
+
+
+def test_the_saved_frequency_responses_are_the_figures_data(datasheet):
+    """frequency_response.csv holds every measured response (the command's two amplitudes and
+    the rod force, each on every output) and the linear model's, and the datasheet's
+    figures agree with it: the -3 dB bandwidth read off its small-signal gain and the least
+    dynamic stiffness off its rod-force response are the sheet's."""
+    out, sheet, _ = datasheet
+    assert sheet["frequency_response"] == "frequency_response.csv"
+    assert sheet["linear_model"] == {"PI": ac.LINEAR_MODEL}
+    rows = list(csv.DictReader((out / "frequency_response.csv").open()))
+    kinds = {(r["source"], r["input"], r["excitation"], r["output"]) for r in rows}
+    measured = {("stepped", "position_command", size) for size in ("small", "large")}
+    measured |= {("stepped", "rod_force_N", "force")}
+    models = {
+        ("linear model", "position_command", "model"),
+        ("linear model", "rod_force_N", "model"),
+    }
+    assert kinds == {(*k, output) for k in measured | models for output in ac.OUTPUTS}
+
+    def curve(source, input, excitation, output="position"):
+        chosen = [
+            r
+            for r in rows
+            if (r["source"], r["input"], r["excitation"], r["output"])
+            == (source, input, excitation, output)
+        ]
+        f = np.array([float(r["frequency_Hz"]) for r in chosen])
+        return f, np.array([complex(float(r["real"]), float(r["imag"])) for r in chosen])
+
+    f, h = curve("stepped", "position_command", "small")
+    assert f.tolist() == list(ac.Battery().frequencies_Hz)
+    figures = sheet["sets"]["PI"]
+    assert first_crossing(f, gain_dB(h), -3.0) == pytest.approx(figures["bandwidth_small_Hz"])
+    f, h = curve("stepped", "rod_force_N", "force")
+    stiffness = 1e-3 / np.abs(h)
+    assert stiffness.min() == pytest.approx(figures["dynamic_stiffness_min_N_per_mm"])
+    _, model = curve("linear model", "position_command", "model")
+    assert np.abs(model[0] - 1.0) < 1e-3  # integral action: unit gain at low frequency
+
+
+LINEAR_PI = [  # the linear configuration of tests/test_linear.py
+    "plant.friction.model='none'",
+    "plant.backlash.width_mm=0",
+    "plant.drivetrain.screw_efficiency=1",
+    "sensors='ideal'",
+    "load.motor_torque_Nm=[]",
+]
+SHORT = {"frequencies_Hz": (1.0, 3.0, 10.0), "stiffness_frequencies_Hz": (1.0, 10.0)}
+WITHIN_LIMITS = {"small_amplitude": 0.001, "large_amplitude": 0.002}  # current < its limit
+
+
+def test_a_chirp_reads_the_stepped_sines_response_on_a_linear_loop():
+    """On the linear configuration, with amplitudes that keep the drive inside its current
+    limit over the whole sweep, the sweep's response (Fourier transforms of the whole record)
+    is the stepped sines' and the linear model's: within 0.1 dB and 1 deg from the command,
+    0.2 dB and 2 deg from the rod force, on every output; and Acceptance.frequency_response
+    gives each as python-control data."""
+    scenario = load_scenario("position-step", settings=LINEAR_PI)
+    answers = {}
+    for excitation in ac.EXCITATIONS:
+        battery = ac.Battery(excitation=excitation, chirp_s=8.0, **SHORT, **WITHIN_LIMITS)
+        answers[excitation] = ac.run_acceptance(scenario, labels=["PI"], battery=battery)
+    chirp, stepped = answers["chirp"], answers["stepped"]
+    assert chirp.meta["runs"] < stepped.meta["runs"]
+    for input, amplitude, tol_dB, tol_deg in (
+        ("position_command", "small", 0.1, 1.0),
+        ("position_command", "large", 0.1, 1.0),
+        ("rod_force_N", None, 0.2, 2.0),
+    ):
+        for output in ac.OUTPUTS:
+            swept = chirp.frequency_response("PI", input, output, amplitude)
+            reference = [
+                stepped.frequency_response("PI", input, output, amplitude),
+                stepped.frequency_response("PI", input, output, linear=True),
+            ]
+            assert swept.input_labels == [input] and swept.output_labels == [output]
+            for other in reference:
+                np.testing.assert_array_equal(swept.omega, other.omega)
+                ratio = swept.complex.ravel() / other.complex.ravel()
+                assert np.all(np.abs(gain_dB(ratio)) <= tol_dB), (input, output, ratio)
+                assert np.all(np.abs(np.degrees(np.angle(ratio))) <= tol_deg), (input, output)
+
+
+def test_a_loop_without_a_linear_model_says_why():
+    """The bench (the clearance-joint linkage) and a loop closed on the motor encoder get no
+    overlay, and the reason; asking for their linear response is refused in one line, as are
+    names out of range."""
+    battery = ac.Battery(**SHORT)
+    bench = dict(load_scenario("bench-step").variants())
+    models, why = ac.linear_responses(next(iter(bench.values())), battery)
+    assert models == [] and why.startswith("none: linearize: the clearance-joint linkage")
+    motor = load_scenario("position-step", settings=["loop.position_feedback='motor'"])
+    models, why = ac.linear_responses(dict(motor.variants())["PI"], battery)
+    assert models == [] and "motor encoder" in why
+    sheet = ac.Acceptance(motor, battery, {"PI": {}}, {"PI": {"responses": []}}, {})
+    sheet.meta["linear_model"] = {"PI": why}
+    for kwargs, match in (
+        ({"linear": True}, "PI has no linear model: none: the loop closes on the motor"),
+        ({"input": "torque"}, "input must be one of position_command, rod_force_N"),
+        ({"output": "rudder"}, "output must be one of position, motor_speed_rad_s, iq_A"),
+        ({"input": "rod_force_N", "amplitude": "large"}, "None \\(the rod force has one\\)"),
+        ({"amplitude": "huge"}, "one of small, large"),
+    ):
+        with pytest.raises(InputError, match=match):
+            sheet.frequency_response("PI", **kwargs)
+    with pytest.raises(InputError, match="excitation must be one of stepped, chirp"):
+        ac.Battery(excitation="noise")

@@ -204,6 +204,9 @@ def _configure_logging(level: int) -> None:
     captured.handlers[:] = log.handlers
     captured.propagate = False
     warnings.formatwarning = _warning_text
+    # captureWarnings(True) does nothing while it holds; released first, it is installed again
+    # where warnings.showwarning was restored since (a caller's warnings.catch_warnings)
+    logging.captureWarnings(False)
     logging.captureWarnings(True)
 
 
@@ -807,17 +810,27 @@ def acceptance(
             "--out", "-o", help="datasheet folder (default: a fresh runs/acceptance/SCENARIO-TIME)"
         ),
     ] = None,
+    excitation: Annotated[
+        str,
+        typer.Option(
+            "--excitation",
+            help="the frequency responses' input: 'stepped' sines, or 'chirp', one logarithmic "
+            "sweep per amplitude (faster; the best linear approximation)",
+        ),
+    ] = "stepped",
     force: ForceOption = False,
 ) -> None:
     """Run the actuator acceptance battery (frequency response, threshold, stiffness, rate and
-    load) for each controller set; write datasheet.json, report.html and the figures."""
+    load) for each controller set; write datasheet.json, frequency_response.csv, report.html
+    and the figures."""
     from .output import check_folder
     from .scenarios.loader import load_scenario
 
     try:
         sc = load_scenario(scenario, settings=setting or [])
-        from .experiments.acceptance import check_acceptance, run_acceptance
+        from .experiments.acceptance import Battery, check_acceptance, run_acceptance
 
+        battery = Battery(excitation=excitation)
         check_acceptance(sc, label)  # every rule, before anything is compiled or written
         if out is not None:
             check_folder(out, force)  # refuse before spending the simulation time
@@ -825,14 +838,15 @@ def acceptance(
         start = time.perf_counter()
         bar, progress = _runs_bar(f"acceptance battery of {sc.name}")
         with bar:
-            result = run_acceptance(sc, labels=label, progress=progress)
+            result = run_acceptance(sc, labels=label, battery=battery, progress=progress)
         folder = result.save(out, force=force)
     except EmasimError as err:
         _fail(err)
     _print_datasheet(result)
     log.info(
         f"{result.meta['runs']} runs, {result.meta['simulated_s']:.0f} s simulated in "
-        f"{time.perf_counter() - start:.1f} s; wrote {folder}/ (datasheet.json, report.html)"
+        f"{time.perf_counter() - start:.1f} s; wrote {folder}/ (datasheet.json, "
+        "frequency_response.csv, report.html)"
     )
 
 

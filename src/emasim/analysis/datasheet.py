@@ -1,10 +1,13 @@
-"""The acceptance datasheet: datasheet.json, the figures (Bode, dynamic stiffness, hysteresis
-loop) and report.html, rendered from a Jinja2 template with every text escaped.
+"""The acceptance datasheet: datasheet.json, frequency_response.csv, the figures (Bode, dynamic
+stiffness, hysteresis loop) and report.html, rendered from a Jinja2 template with every text
+escaped.
 
 Reads an :class:`emasim.experiments.acceptance.Acceptance`; writes into an existing folder
 (the caller's :func:`emasim.output.write_folder` makes it atomic).
 """
 
+import csv
+import io
 from importlib.resources import files
 from pathlib import Path
 
@@ -21,13 +24,15 @@ FIGURES = (
     (
         "bode.png",
         "Frequency response",
-        "Output over command, small signal (solid) and large signal (dashed), from stepped "
-        "sines of the command amplitudes in the legend. Grey: -3 dB, -45 deg and -90 deg.",
+        "Output over command, small signal (solid) and large signal (dashed), of the "
+        "command amplitudes in the legend; dotted, each set's linear model where it has one. "
+        "Grey: -3 dB, -45 deg and -90 deg.",
     ),
     (
         "stiffness.png",
         "Dynamic stiffness",
-        "|F/x| of rod-force sines while the command holds mid stroke.",
+        "|F/x| of the rod force while the command holds mid stroke; dotted, each set's linear "
+        "model where it has one.",
     ),
     (
         "hysteresis.png",
@@ -38,12 +43,59 @@ FIGURES = (
 
 
 def cell(value) -> str:
-    """One table cell: 4 significant figures, yes/no, or n/a where the battery found none."""
+    """One table cell: 4 significant figures, yes/no, a word as it is, or n/a where the battery
+    found none."""
     if value is None:
         return "n/a"
+    if isinstance(value, str):
+        return value
     if isinstance(value, bool):
         return "yes" if value else "no"
     return f"{value:.4g}"
+
+
+CSV_COLUMNS = (
+    "set",
+    "source",
+    "input",
+    "input_unit",
+    "excitation",
+    "amplitude",
+    "output",
+    "output_unit",
+    "frequency_Hz",
+    "gain_dB",
+    "phase_deg",
+    "real",
+    "imag",
+)
+
+
+def frequency_response_csv(curves: dict) -> str:
+    """Every set's responses (each input, excitation, output and source), a row a frequency:
+    CSV_COLUMNS, H = real + j imag in the output's unit per the input's, its gain in dB of
+    that ratio and its phase in degrees, unwrapped along each response."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for label, c in curves.items():
+        for r in c["responses"]:
+            fixed = [label, r.source, r.input, r.input_unit, r.excitation]
+            fixed += ["" if r.amplitude is None else repr(float(r.amplitude))]
+            fixed += [r.output, r.output_unit]
+            gains, phases = fr.gain_dB(r.h), fr.phase_deg(r.h)
+            for f, h, g, ph in zip(r.frequencies_Hz, r.h, gains, phases, strict=True):
+                numbers = (f, g, ph, h.real, h.imag)
+                writer.writerow(fixed + [repr(float(x)) for x in numbers])
+    return buffer.getvalue()
+
+
+def linear_curve(c: dict, input: str) -> tuple | None:
+    """(f, H) of the set's linear model of the position from ``input``, or None."""
+    for r in c["responses"]:
+        if (r.source, r.input, r.output) == ("linear model", input, "position"):
+            return r.frequencies_Hz, r.h
+    return None
 
 
 def plot_bode(curves: dict) -> Figure:
@@ -57,6 +109,12 @@ def plot_bode(curves: dict) -> Figure:
             name = f"{label}, {size} (±{amplitude:.3g} mm)"
             gain.semilogx(f, fr.gain_dB(h), style, color=color, ms=3, label=name)
             phase.semilogx(f, fr.phase_deg(h), style, color=color, ms=3)
+        model = linear_curve(c, "position_command")
+        if model is not None:
+            f, h = model
+            name = f"{label}, linear model"
+            gain.semilogx(f, fr.gain_dB(h), ":", color=color, lw=1.5, label=name)
+            phase.semilogx(f, fr.phase_deg(h), ":", color=color, lw=1.5)
     gain.axhline(-3.0, color="0.6", lw=0.8)
     for level in (-45.0, -90.0):
         phase.axhline(level, color="0.6", lw=0.8)
@@ -68,8 +126,13 @@ def plot_bode(curves: dict) -> Figure:
 
 def plot_stiffness(curves: dict) -> Figure:
     fig, ax = _figure("frequency (Hz)", "|F/x| (N/mm)")
-    for label, c in curves.items():
-        ax.loglog(*c["stiffness"], "-o", ms=3, label=label)
+    for k, (label, c) in enumerate(curves.items()):
+        ax.loglog(*c["stiffness"], "-o", color=f"C{k}", ms=3, label=label)
+        model = linear_curve(c, "rod_force_N")
+        if model is not None:
+            f, h = model
+            name = f"{label}, linear model"
+            ax.loglog(f, 1e-3 / np.abs(h), ":", color=f"C{k}", lw=1.5, label=name)
     return _with_legend(fig, ax)
 
 
@@ -96,12 +159,14 @@ def _with_legend(fig: Figure, ax) -> Figure:
 
 
 def write_datasheet(acceptance, folder: Path) -> None:
-    """datasheet.json, bode.png, stiffness.png, hysteresis.png and report.html in ``folder``."""
+    """datasheet.json, frequency_response.csv, bode.png, stiffness.png, hysteresis.png and
+    report.html in ``folder``."""
     from jinja2 import Environment, select_autoescape
 
     sheet = acceptance.datasheet()
     write_new(folder / "datasheet.json", json_text(sheet))
     curves = acceptance.curves
+    write_new(folder / sheet["frequency_response"], frequency_response_csv(curves))
     for (name, _, _), plot in zip(
         FIGURES, (plot_bode, plot_stiffness, plot_hysteresis), strict=True
     ):
@@ -129,6 +194,8 @@ def write_datasheet(acceptance, folder: Path) -> None:
         simulated=f"{meta['simulated_s']:.0f}",
         wall=f"{meta['simulation_wall_s']:.1f}",
         output=sheet["output"],
+        linear_model=sheet["linear_model"],
+        responses=sheet["frequency_response"],
         labels=labels,
         rows=rows,
         figures=[{"file": f, "title": t, "caption": c} for f, t, c in FIGURES],

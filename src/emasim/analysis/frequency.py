@@ -12,6 +12,9 @@ rejects every harmonic exactly, and so reads the describing function of a nonlin
 trend term would absorb a drift, but it is not orthogonal to the harmonics and lets them leak
 into the fundamental: the runs settle before the window instead.)
 
+A swept run (a chirp: emasim.signals.Chirp) excites a band at once; :func:`sweep_response`
+reads H(f) = Y(f) / U(f) from the Fourier transforms of the whole record.
+
 Gains are in dB (20 log10 |H|), phases in degrees, unwrapped from the lowest frequency on.
 """
 
@@ -41,6 +44,32 @@ def response(t: ArrayLike, u: ArrayLike, y: ArrayLike, frequency_Hz: float) -> c
     if u_phasor == 0:
         raise ValueError(f"the input has no component at {frequency_Hz:g} Hz")
     return phasor(t, y, frequency_Hz) / u_phasor
+
+
+def sweep_response(
+    t: ArrayLike, u: ArrayLike, y: ArrayLike, frequencies_Hz: ArrayLike
+) -> np.ndarray:
+    """H(f) = Y(f) / U(f) at each of ``frequencies_Hz`` from one record of a swept input:
+
+        U(f) = sum_i u(t_i) exp(-j 2 pi f t_i),  Y(f) likewise,
+
+    the Fourier transforms of the whole record at exactly f (not on an FFT's grid; the sample
+    period cancels in the ratio). u and y are deviations from rest that start and end at rest
+    (the sweep starts and ends at 0, the response has died out): then no window is needed,
+    and for a linear system H is its frequency response wherever the sweep put energy, U(f)
+    far from 0. For a nonlinear one it is the best linear approximation for this sweep, not
+    the describing function a stepped sine of one amplitude reads (module docstring)."""
+    t, u, y = (np.asarray(a, dtype=float) for a in (t, u, y))
+    if t.ndim != 1 or t.shape != u.shape or t.shape != y.shape or t.size < 4:
+        raise ValueError("sweep_response needs t, u and y of the same length, at least 4")
+    out = []
+    for f in np.asarray(frequencies_Hz, dtype=float):
+        kernel = np.exp(-2j * np.pi * f * t)
+        u_f = np.dot(u, kernel)
+        if u_f == 0:
+            raise ValueError(f"the input has no component at {f:g} Hz")
+        out.append(np.dot(y, kernel) / u_f)
+    return np.array(out)
 
 
 def gain_dB(h: ArrayLike) -> np.ndarray:

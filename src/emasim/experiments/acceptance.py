@@ -8,7 +8,20 @@ standing loads, a load motor's preload, stay) and its own command and load:
   amplitude a fraction of the full stroke (1 % and 10 %, peak), at log-spaced frequencies. Each
   run settles for ``settle_s`` plus ``settle_cycles`` periods, then the fundamental of the
   output over the command (:mod:`emasim.analysis.frequency`) is read over a whole number of
-  periods. Figures: the -3 dB bandwidth, the frequencies of -45 and -90 deg phase.
+  periods. Figures: the -3 dB bandwidth, the frequencies of -45 and -90 deg phase. With
+  ``excitation="chirp"`` one logarithmic sweep per amplitude replaces the stepped sines (a
+  band an eighth of a decade beyond the frequencies read, ``chirp_s`` long, after
+  ``settle_s`` at rest and followed by ``settle_s`` more), read by the Fourier transforms of
+  the whole record (:func:`emasim.analysis.frequency.sweep_response`): faster, and for a
+  nonlinear loop the best linear approximation instead of each amplitude's describing
+  function. Every response is read on several outputs (OUTPUTS: the controlled position, the
+  motor speed, the q current) and kept (:class:`Response`): the datasheet saves them as
+  frequency_response.csv, and :meth:`Acceptance.frequency_response` gives any of them as a
+  ``control.FrequencyResponseData``.
+* **The linear model beside them**: where ``emasim.linearize`` models the loop (plays
+  closed, friction dropped, at standstill), its responses from the command and from the rod
+  force at the same frequencies, overlaid on the measured ones; elsewhere the reason it has
+  none (the bench's linkage and load motor are not linearised yet).
 * **Threshold and hysteresis**: a slow triangle of the command after a hold of ``settle_s``
   at mid stroke. The threshold is the command
   travel after each reversal before the output has moved ``detection_mm`` the new way, less
@@ -43,11 +56,13 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING
 
+import control
 import numpy as np
 
 from ..analysis import frequency as fr
 from ..analysis.metrics import rise_time
 from ..errors import InputError
+from ..linear import linearize
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
 
@@ -69,6 +84,14 @@ RECORDED = (
 )
 DECADE_EIGHTHS = tuple(float(10 ** (k / 8)) for k in range(-4, 13))  # 0.32 .. 31.6 Hz
 DECADE_QUARTERS = DECADE_EIGHTHS[::2]
+EXCITATIONS = ("stepped", "chirp")
+CHIRP_MARGIN = 10 ** (1 / 8)  # the chirp's band beyond the frequencies read: DECADE_EIGHTHS' step
+INPUTS = {"position_command": "m", "rod_force_N": "N"}  # what a response is excited by
+OUTPUTS = {  # what every response is read on, and the linear model's reading of it
+    "position": ("m", "measured_position_m"),
+    "motor_speed_rad_s": ("rad/s", "motor_speed_rad_s"),
+    "iq_A": ("A", "iq_A"),
+}
 
 
 @dataclass(frozen=True)
@@ -96,6 +119,24 @@ class Battery:
     stall_ramp_per_s: float = 1.0
     stall_deflection_mm: float = 1.0
     cycle_frequency_Hz: float = 1.0
+    excitation: str = "stepped"
+    chirp_s: float = 30.0
+
+    def __post_init__(self):
+        if self.excitation not in EXCITATIONS:
+            raise InputError(
+                f"excitation must be one of {', '.join(EXCITATIONS)}, got {self.excitation!r}"
+            )
+        if not self.chirp_s > 0:
+            raise InputError(f"chirp_s must be > 0 s, got {self.chirp_s}")
+
+    @property
+    def band_Hz(self) -> tuple[float, float]:
+        """A chirp's band: CHIRP_MARGIN below the lowest to CHIRP_MARGIN above the highest
+        frequency read (no further: a sweep that drove the loop into its current limit
+        beyond the band would spread that distortion over the band)."""
+        every = self.frequencies_Hz + self.stiffness_frequencies_Hz
+        return min(every) / CHIRP_MARGIN, max(every) * CHIRP_MARGIN
 
     def periods(self, frequency_Hz: float) -> tuple[float, float]:
         """(settling time, measured window) of a stepped sine: whole periods for the window."""
@@ -134,6 +175,39 @@ class Drive:
         if self.rudder_grid is None:
             return result["actuator_position_m"]
         return np.interp(result["rudder_angle_rad"], *self.rudder_grid)
+
+    def outputs(self, result) -> dict[str, np.ndarray]:
+        """Every output of OUTPUTS a response is read on, from a run's result."""
+        return {
+            "position": self.output_m(result),
+            "motor_speed_rad_s": result["motor_speed_rad_s"],
+            "iq_A": result["iq_A"],
+        }
+
+
+@dataclass(frozen=True)
+class Response:
+    """One frequency response: ``output`` (an OUTPUTS key) over ``input`` (an INPUTS key) at
+    ``frequencies_Hz``, complex, in the output's unit per the input's. ``excitation`` is the
+    battery's run: "small" or "large" (the command), "force" (the rod force), or "model" (the
+    linear model, which has no amplitude); ``amplitude`` the excitation's peak (m or N);
+    ``source`` how it was read: "stepped" or "chirp" (measured), or "linear model"."""
+
+    input: str
+    excitation: str
+    amplitude: float | None
+    output: str
+    frequencies_Hz: np.ndarray
+    h: np.ndarray
+    source: str
+
+    @property
+    def input_unit(self) -> str:
+        return INPUTS[self.input]
+
+    @property
+    def output_unit(self) -> str:
+        return OUTPUTS[self.output][0]
 
 
 # --- the runs -----------------------------------------------------------------------------
@@ -179,18 +253,56 @@ def measure_sine(scenario, drive, battery) -> dict:
     t = result.t
     keep = t >= settle - 1e-9
     excitation = result["rod_load_N"] if scenario.load.rod_force_N else result["position_ref_m"]
-    output = drive.output_m(result)
-    h = fr.response(t[keep], excitation[keep], output[keep], f)
+    outputs = drive.outputs(result)
+    responses = {
+        name: fr.response(t[keep], excitation[keep], y[keep], f) for name, y in outputs.items()
+    }
     i_d, i_q = result["id_A"][keep], result["iq_A"][keep]
     power = 1.5 * (result["ud_V"][keep] * i_d + result["uq_V"][keep] * i_q)
     span = t[keep][-1] - t[keep][0]
     return {
         "frequency_Hz": f,
-        "response": h,
-        "output_amplitude_m": abs(fr.phasor(t[keep], output[keep], f)),
+        "response": responses["position"],
+        "responses": responses,
+        "output_amplitude_m": abs(fr.phasor(t[keep], outputs["position"][keep], f)),
         "rms_current_A": float(np.sqrt(np.mean(i_d**2 + i_q**2))),
         "energy_per_cycle_J": float(np.trapezoid(power, t[keep]) / (span * f)),
     }
+
+
+def chirp_job(base, drive, battery, amplitude_m, force_N=0.0):
+    """One logarithmic sweep over the battery's band, of the command (amplitude_m) or of a rod
+    force (force_N): settle_s at rest, the sweep, then settle_s for the response to die out."""
+    low, high = battery.band_Hz
+    start = battery.settle_s
+    sweep = {"type": "chirp", "start_Hz": low, "end_Hz": high, "start_s": start}
+    sweep["duration_s"] = battery.chirp_s
+    if force_N:
+        command = [{"type": "constant", "value": 0.0}]
+        force = [sweep | {"amplitude": force_N}]
+    else:
+        command, force = [sweep | {"amplitude": amplitude_m / MM}], None
+    duration = start + battery.chirp_s + battery.settle_s
+    return ("chirp", battery_scenario(base, duration, command, force), drive, battery)
+
+
+def measure_chirp(scenario, drive, battery) -> dict:
+    """Every output's response to the sweep at the battery's frequencies (the stiffness
+    frequencies for a rod-force sweep), deviations from the rest before it."""
+    result = simulate(scenario.setup())
+    forced = bool(scenario.load.rod_force_N)
+    sweep = (scenario.load.rod_force_N or scenario.reference.position_mm)[0]
+    t = result.t
+    rest = (t >= 0.5 * sweep.start_s) & (t < sweep.start_s)
+    keep = t >= sweep.start_s
+    excitation = result["rod_load_N"] if forced else result["position_ref_m"]
+    u = excitation[keep] - np.mean(excitation[rest])
+    f = np.array(battery.stiffness_frequencies_Hz if forced else battery.frequencies_Hz)
+    responses = {
+        name: fr.sweep_response(t[keep], u, y[keep] - np.mean(y[rest]), f)
+        for name, y in drive.outputs(result).items()
+    }
+    return {"frequencies_Hz": f, "responses": responses}
 
 
 def triangle_job(base, drive, battery):
@@ -349,6 +461,7 @@ def measure_stall(scenario, drive, battery) -> dict:
 
 MEASURES = {
     "sine": measure_sine,
+    "chirp": measure_chirp,
     "triangle": measure_triangle,
     "load_step": measure_load_step,
     "rate": measure_rate,
@@ -412,15 +525,65 @@ class Acceptance:
     meta: dict
 
     def datasheet(self) -> dict:
-        """What DIR/datasheet.json holds: the sets side by side, the definitions, the battery."""
+        """What DIR/datasheet.json holds: the sets side by side, the definitions, the battery,
+        what the output is, and each set's linear model (what it is, or why there is none)."""
+        described = ("output", "linear_model")
         return {
             "scenario": self.scenario.name,
             "sets": self.figures,
             "definitions": DEFINITIONS,
             "battery": asdict(self.battery),
             "output": self.meta["output"],
-            "meta": {k: v for k, v in self.meta.items() if k != "output"},
+            "linear_model": self.meta["linear_model"],
+            "frequency_response": "frequency_response.csv",
+            "meta": {k: v for k, v in self.meta.items() if k not in described},
         }
+
+    def frequency_response(
+        self,
+        label: str,
+        input: str = "position_command",
+        output: str = "position",
+        amplitude: str | None = None,
+        linear: bool = False,
+    ) -> control.FrequencyResponseData:
+        """One set's frequency response as python-control data (omega in rad/s).
+
+        Parameters
+        ----------
+        label : the controller set.
+        input : "position_command" (m) or "rod_force_N" (N, positive opposing extension).
+        output : "position" (the controlled output, m), "motor_speed_rad_s" or "iq_A".
+        amplitude : for the command, "small" (default) or "large"; the rod force has one.
+        linear : the linear model's response at the same frequencies instead of the
+            measured one.
+
+        Raises
+        ------
+        InputError : a name out of its range, or a linear model the set has none of.
+        """
+        choices = (("label", label, self.curves), ("input", input, INPUTS))
+        for what, value, allowed in (*choices, ("output", output, OUTPUTS)):
+            if value not in allowed:
+                raise InputError(f"{what} must be one of {', '.join(allowed)}, got {value!r}")
+        sizes = ("small", "large") if input == "position_command" else ()
+        if amplitude is not None and amplitude not in sizes:
+            allowed = f"one of {', '.join(sizes)}" if sizes else "None (the rod force has one)"
+            raise InputError(f"amplitude for {input} must be {allowed}, got {amplitude!r}")
+        responses = self.curves[label]["responses"]
+        if linear and not any(r.source == "linear model" for r in responses):
+            raise InputError(f"{label} has no linear model: {self.meta['linear_model'][label]}")
+        excitation = "model" if linear else amplitude or ("small" if sizes else "force")
+        (chosen,) = [
+            r for r in responses if (r.input, r.excitation, r.output) == (input, excitation, output)
+        ]
+        return control.frd(
+            chosen.h,
+            2 * np.pi * chosen.frequencies_Hz,
+            inputs=[input],
+            outputs=[output],
+            name=f"{self.scenario.name}-{label}-{chosen.source}",
+        )
 
     def save(self, folder=None, force: bool = False):
         """Write datasheet.json, report.html and the figures into ``folder`` (default a fresh
@@ -457,17 +620,26 @@ def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, tuple
         battery.large_amplitude * drive.stroke_m,
     )
     force = battery.dynamic_force * drive.stall_force_N
-    jobs = [
-        (("small", f), sine_job(variant, drive, battery, f, small)) for f in battery.frequencies_Hz
-    ]
-    jobs += [
-        (("large", f), sine_job(variant, drive, battery, f, large)) for f in battery.frequencies_Hz
-    ]
-    jobs += [
-        (("stiffness", f), sine_job(variant, drive, battery, f, 0.0, force_N=force))
-        for f in battery.stiffness_frequencies_Hz
-    ]
-    if battery.cycle_frequency_Hz not in battery.frequencies_Hz:
+    if battery.excitation == "chirp":
+        jobs = [
+            (("chirp", "small"), chirp_job(variant, drive, battery, small)),
+            (("chirp", "large"), chirp_job(variant, drive, battery, large)),
+            (("chirp", "stiffness"), chirp_job(variant, drive, battery, 0.0, force_N=force)),
+        ]
+    else:
+        jobs = [
+            (("small", f), sine_job(variant, drive, battery, f, small))
+            for f in battery.frequencies_Hz
+        ]
+        jobs += [
+            (("large", f), sine_job(variant, drive, battery, f, large))
+            for f in battery.frequencies_Hz
+        ]
+        jobs += [
+            (("stiffness", f), sine_job(variant, drive, battery, f, 0.0, force_N=force))
+            for f in battery.stiffness_frequencies_Hz
+        ]
+    if battery.excitation == "chirp" or battery.cycle_frequency_Hz not in battery.frequencies_Hz:
         jobs.append(
             (
                 ("cycle", battery.cycle_frequency_Hz),
@@ -552,10 +724,12 @@ def run_acceptance(
     else:
         values = map_runs(_measure, jobs, client, on_done)
     wall = time.perf_counter() - start
-    figures, curves = {}, {}
+    figures, curves, linear = {}, {}, {}
     for label in chosen:
         measured = {tag: v for (lb, tag, _), v in zip(tagged, values, strict=True) if lb == label}
         figures[label], curves[label] = summarize(measured, Drive.of(variants[label]), battery)
+        models, linear[label] = linear_responses(variants[label], battery)
+        curves[label]["responses"] += models
     from .runs import meta_of
 
     meta = meta_of(scenario, wall)
@@ -563,13 +737,57 @@ def run_acceptance(
         runs=len(tagged),
         simulated_s=sum(job[1].duration_s for job in jobs),
         output=output_description(scenario),
+        linear_model=linear,
     )
     return Acceptance(scenario, battery, figures, curves, meta)
 
 
+LINEAR_MODEL = "linearize: plays closed, friction dropped, at standstill"
+
+
+def linear_responses(variant: Scenario, battery: Battery) -> tuple[list[Response], str]:
+    """The linearised loop's responses (emasim.linearize, LINEAR_MODEL) of every output from
+    the command and from the rod force at the battery's frequencies, and a line saying what
+    they are; none, and the reason, where the loop has no linear model or the model's position
+    is not the battery's (a loop closed on the motor encoder: the battery reads the rod)."""
+    if variant.loop.position_feedback == "motor":
+        return [], "none: the loop closes on the motor encoder, the battery reads the rod"
+    excitations = (
+        ("reference", "position_command", battery.frequencies_Hz),
+        ("rod_force_N", "rod_force_N", battery.stiffness_frequencies_Hz),
+    )
+    out = []
+    try:
+        for port, name, frequencies in excitations:
+            f = np.array(frequencies)
+            for output, (_, reading) in OUTPUTS.items():
+                model = linearize(variant, input=port, output=reading)
+                h = control.frequency_response(model, 2 * np.pi * f).complex.ravel()
+                out.append(Response(name, "model", None, output, f, h, "linear model"))
+    except InputError as err:
+        return [], f"none: {err}"
+    return out, LINEAR_MODEL
+
+
+def spread_sweeps(measured: dict) -> dict:
+    """The chirps' responses, each frequency under the tag of its stepped sine (size, f),
+    so that the figures read them alike."""
+    out = dict(measured)
+    for tag, m in measured.items():
+        if tag[0] == "chirp":
+            for k, f in enumerate(m["frequencies_Hz"]):
+                responses = {name: h[k] for name, h in m["responses"].items()}
+                out[(tag[1], float(f))] = {
+                    "response": responses["position"],
+                    "responses": responses,
+                }
+    return out
+
+
 def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dict]:
     """The datasheet's figures (DEFINITIONS) and the curves of one set's measurements."""
-    curves = {}
+    measured = spread_sweeps(measured)
+    curves = {"responses": []}
     figures = {
         "small_amplitude_mm": battery.small_amplitude * drive.stroke_m / MM,
         "large_amplitude_mm": battery.large_amplitude * drive.stroke_m / MM,
@@ -578,6 +796,21 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
         "small": figures["small_amplitude_mm"],
         "large": figures["large_amplitude_mm"],
     }
+    command, force = drive.stroke_m, drive.stall_force_N
+    excitations = (  # (the runs' tag, the response's input and excitation, f, peak)
+        ("small", "position_command", "small", battery.small_amplitude * command),
+        ("large", "position_command", "large", battery.large_amplitude * command),
+        ("stiffness", "rod_force_N", "force", battery.dynamic_force * force),
+    )
+    for tag, name, excitation, amplitude in excitations:
+        f = np.array(
+            battery.stiffness_frequencies_Hz if tag == "stiffness" else battery.frequencies_Hz
+        )
+        for output in OUTPUTS:
+            h = np.array([measured[(tag, x)]["responses"][output] for x in f])
+            curves["responses"].append(
+                Response(name, excitation, amplitude, output, f, h, battery.excitation)
+            )
     for size in ("small", "large"):
         f = np.array(battery.frequencies_Hz)
         h = np.array([measured[(size, x)]["response"] for x in battery.frequencies_Hz])
