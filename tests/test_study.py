@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from emasim.errors import InputError
@@ -17,12 +18,15 @@ from emasim.experiments.runs import run_scenario
 from emasim.experiments.study import (
     METRICS_FILE,
     RUNS_FOLDER,
+    Plan,
     StudySpec,
     finished_rows,
+    grouping_keys,
     plan_study,
     read_table,
     run_and_write,
     run_study,
+    summarize_by,
 )
 from emasim.experiments.variation import parse_variation, samples
 from emasim.output import OutputError, foreign_files
@@ -359,6 +363,42 @@ def test_a_scheduler_that_cannot_be_reached_is_one_line(tmp_path, address):
     assert "\n" not in str(err.value)
 
 
+def test_a_summary_is_grouped_by_each_varied_key_that_takes_a_few_values():
+    """A grid's key (3 values) and a discrete draw's (2 values) group the summary, each value's
+    distribution over its own runs (the other keys pooled: medians checked against numpy);
+    a continuous draw (a value a run) and the scenario seed (replicates) do not."""
+    variations = [
+        parse_variation("plant.backlash.width_mm=0.05,0.1,0.2"),
+        parse_variation("plant.friction.scale=discrete(0.5,1.5,2)"),
+        parse_variation("plant.load.rudder_inertia_kgm2=uniform(0.9,1.1)"),
+        parse_variation("seed=1,2"),
+    ]
+    rng = np.random.default_rng(0)
+    n = 24
+    table = pd.DataFrame(
+        {
+            "run_id": [f"pi-{k:05d}" for k in range(n)],
+            "label": ["PI"] * n,
+            "sample": range(n),
+            "status": ["ok"] * n,
+            "plant.backlash.width_mm": np.repeat([0.05, 0.1, 0.2], n // 3),
+            "plant.friction.scale": np.tile([0.5, 1.5], n // 2),
+            "plant.load.rudder_inertia_kgm2": rng.uniform(0.9, 1.1, n),
+            "seed": np.tile([1, 2, 1, 2], n // 4),
+            "overshoot_pct": rng.normal(5.0, 1.0, n),
+        }
+    )
+    plan = Plan(None, variations, ["PI"], [])
+    assert grouping_keys(table, plan) == ["plant.backlash.width_mm", "plant.friction.scale"]
+    for key in grouping_keys(table, plan):
+        groups = summarize_by(table, plan, key)
+        assert list(groups) == sorted(set(table[key]))
+        for value, summary in groups.items():
+            chosen = table.loc[table[key] == value, "overshoot_pct"]
+            d = summary["PI"]["overshoot_pct"]
+            assert d["runs"] == len(chosen) and d["p50"] == pytest.approx(np.median(chosen))
+
+
 def test_the_command_line_runs_a_study_on_worker_processes(tmp_path):
     out = tmp_path / "s"
     command = [sys.executable, "-m", "emasim", "study", "speed-step", "--label", "PI"]
@@ -370,6 +410,11 @@ def test_the_command_line_runs_a_study_on_worker_processes(tmp_path):
     assert "3 runs in" in done.stderr and "Traceback" not in done.stderr  # an info line
     table = read_table(out)
     assert list(table["plant.backlash.width_mm"]) == [0.05, 0.1, 0.2]
+    # the console summary: a block per width, each run's own figure (one run: its median)
+    assert "at each plant.backlash.width_mm" in " ".join(done.stdout.split())
+    assert done.stdout.count("rise time") == 3
+    for width, rise in zip(table["plant.backlash.width_mm"], table["rise_time_s"], strict=True):
+        assert f"{width:.4g}" in done.stdout and f"{rise:.4g}" in done.stdout
     again = subprocess.run(
         [*command, "--workers", "2", "--out", str(out)], capture_output=True, text=True
     )

@@ -337,8 +337,6 @@ def _print_metrics(by_label: dict[str, dict], title: str, reasons: dict | None =
     ``nan`` then printed with its reason (``reasons``: label -> metric -> why undefined)."""
     if not _loud():
         return
-    from .analysis.units import SUFFIXES, unit_of
-
     table = Table(title=title)
     table.add_column("metric", overflow="fold", ratio=1)
     table.add_column("unit", no_wrap=True)
@@ -346,15 +344,21 @@ def _print_metrics(by_label: dict[str, dict], title: str, reasons: dict | None =
         table.add_column(label, justify="right", no_wrap=True)
     keys = list(dict.fromkeys(k for m in by_label.values() for k in m))
     for key in keys:
-        unit = unit_of(key)
-        suffix = next((sfx for sfx, u in SUFFIXES if u == unit and key.endswith(sfx)), "")
-        words = key.removesuffix(suffix).replace("_", " ")
         cells = [by_label[label].get(key) for label in by_label]
-        table.add_row(words, unit, *("" if v is None else f"{v:.4g}" for v in cells))
+        table.add_row(*_in_words(key), *("" if v is None else f"{v:.4g}" for v in cells))
     console.print(table)
     for label, why in (reasons or {}).items():
         for key, reason in why.items():
             console.print(f"nan: {label}, {key}: {reason}", highlight=False, markup=False)
+
+
+def _in_words(metric: str) -> tuple[str, str]:
+    """(the metric's name in words, its unit), the unit read from the name's end."""
+    from .analysis.units import SUFFIXES, unit_of
+
+    unit = unit_of(metric)
+    suffix = next((sfx for sfx, u in SUFFIXES if u == unit and metric.endswith(sfx)), "")
+    return metric.removesuffix(suffix).replace("_", " "), unit
 
 
 @app.command()
@@ -683,7 +687,8 @@ def _status_line(table) -> str:
 
 def _print_study(result) -> None:
     """How many runs are ok, diverged and failed, the first reasons (warnings), and the median
-    [5 %, 95 %] of each metric that varies, one column per controller set."""
+    [5 %, 95 %] of each metric that varies, one column per controller set: at each value of
+    every varied key that takes a few (study.grouping_keys), else over all the runs."""
     from .experiments.study import LOG_FILE, OK, first_reasons, status_counts
 
     counts = status_counts(result.table)
@@ -696,23 +701,45 @@ def _print_study(result) -> None:
             log.warning(line)
     if not _loud() or not counts[OK]:
         return
-    from .experiments.study import metric_columns
+    from .experiments.study import grouping_keys, metric_columns, summarize_by
 
-    summary = result.summary()
-    table = Table(title=f"{result.plan.spec.scenario}: median [5 %, 95 %] over the runs")
-    table.add_column("metric")
-    for name in summary:
-        table.add_column(name, justify="right")
-    for metric in metric_columns(result.table, result.plan):
-        if result.table[metric].nunique(dropna=True) <= 1:
-            continue
-        cells = []
-        for per in summary.values():
-            d = per[metric]
-            cells.append(f"{d['p50']:.4g} [{d['p05']:.3g}, {d['p95']:.3g}]" if d["runs"] else "")
-        table.add_row(metric, *cells)
-    if table.row_count:
-        console.print(table)
+    table, plan = result.table, result.plan
+    metrics = [m for m in metric_columns(table, plan) if table[m].nunique(dropna=True) > 1]
+    title = f"{plan.spec.scenario}: median [5 %, 95 %] over the runs"
+    keys = grouping_keys(table, plan)
+    for key in keys:  # a table per varied key, a block of rows per value, the others pooled
+        _print_summary(f"{title} at each {key}", metrics, summarize_by(table, plan, key), key)
+    if not keys:
+        _print_summary(title, metrics, {None: result.summary()})
+
+
+def _print_summary(title: str, metrics: list[str], groups: dict, key: str | None = None) -> None:
+    """A study's summary table: a row per metric, in a block per value of ``key`` (``groups``:
+    value -> label -> metric -> distribution; one group, None, when nothing is grouped), a
+    column per controller set."""
+    if not metrics:
+        return
+    table = Table(title=title)
+    if key is not None:
+        table.add_column(key, justify="right", overflow="fold")
+    table.add_column("metric", overflow="fold", ratio=1)
+    table.add_column("unit", no_wrap=True)
+    labels = list(next(iter(groups.values())))
+    for name in labels:
+        table.add_column(name, justify="right", overflow="fold")
+    for value, summary in groups.items():
+        for k, metric in enumerate(metrics):
+            cells = []
+            for label in labels:
+                d = summary[label][metric]
+                cells.append(
+                    f"{d['p50']:.4g} [{d['p05']:.3g}, {d['p95']:.3g}]" if d["runs"] else ""
+                )
+            shown = f"{value:.4g}" if isinstance(value, float) else str(value)
+            first = [shown if k == 0 else ""] if key is not None else []
+            last = k == len(metrics) - 1
+            table.add_row(*first, *_in_words(metric), *cells, end_section=last)
+    console.print(table)
 
 
 @app.command()

@@ -554,6 +554,23 @@ def summarize(table, plan: Plan) -> dict:
     }
 
 
+MAX_GROUPS = 12  # a varied key with more values than this (a continuous draw) is not grouped
+
+
+def grouping_keys(table, plan: Plan) -> list[str]:
+    """The varied keys a summary is grouped by: each whose column takes 2 to MAX_GROUPS
+    values over the runs (a grid, a discrete draw), but the scenario seed (--seeds: its
+    values are replicates, not a setting)."""
+    names = [v.name for v in plan.variations if v.keys != ("seed",)]
+    return [n for n in names if 1 < table[n].nunique(dropna=True) <= MAX_GROUPS]
+
+
+def summarize_by(table, plan: Plan, key: str) -> dict:
+    """value of ``key`` -> label -> metric -> distribution over the runs at that value (the
+    other varied keys pooled), the values ascending."""
+    return {value: summarize(group, plan) for value, group in table.groupby(key, sort=True)}
+
+
 def status_counts(table) -> dict[str, int]:
     """How many runs of a study table are ok, diverged and failed."""
     kinds = [str(s).split(":", 1)[0] for s in table["status"]] if len(table) else []
