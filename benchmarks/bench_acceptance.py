@@ -8,8 +8,8 @@ beforehand (one short run), REPEATS times; the median wall time. The target (iss
 under two minutes on the 2-core development machine.
 
 ``bench_engine.py`` calls :func:`battery_figures` for its results; ``--write`` stores this
-figure alone in benchmarks/results.json (with the day it was measured) and rewrites the
-README's speed table. ``--quick`` (what CI runs): one set, QUICK_FREQUENCIES frequencies.
+figure alone in benchmarks/results.json (with the day it was measured) and rewrites
+docs/speed.md's table. ``--quick`` (what CI runs): one set, QUICK_FREQUENCIES frequencies.
 """
 
 import argparse
@@ -19,7 +19,7 @@ import statistics
 import time
 from pathlib import Path
 
-from readme_figures import RESULTS, write_readme
+from speed_figures import RESULTS, write_page
 
 from emasim.experiments.acceptance import Battery, run_acceptance
 from emasim.scenarios.loader import load_scenario
@@ -64,7 +64,7 @@ def report(figures: dict) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one set, two frequencies")
-    parser.add_argument("--write", action="store_true", help="store it and rewrite the README")
+    parser.add_argument("--write", action="store_true", help="store it and rewrite docs/speed.md")
     args = parser.parse_args()
     figures = battery_figures(args.quick)
     report(figures)
@@ -72,8 +72,8 @@ def main() -> None:
         results = json.loads(Path(RESULTS).read_text())
         results["acceptance"] = figures
         Path(RESULTS).write_text(json.dumps(results, indent=2) + "\n")
-        write_readme(results)
-        print(f"wrote {RESULTS} and the README's speed table")
+        write_page(results)
+        print(f"wrote {RESULTS} and docs/speed.md's table")
 
 
 if __name__ == "__main__":

@@ -29,8 +29,8 @@ FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``. Acceptance:
 of the whole battery on bench-step's two controller sets (``bench_acceptance.battery_figures``).
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
-count and the Python, numpy and numba versions) and rewrites the README's speed table from it
-(``readme_figures.py``); ``--json FILE`` writes the same figures to FILE only. ``--write
+count and the Python, numpy and numba versions) and rewrites docs/speed.md's table from it
+(``speed_figures.py``); ``--json FILE`` writes the same figures to FILE only. ``--write
 --update NAME`` re-measures one part of the stored figures (SECTIONS: reproduce_s,
 peak_memory, batch, monte_carlo), keeps the rest, and notes the part's date under
 ``updated``, which the table's first line names.
@@ -38,7 +38,7 @@ peak_memory, batch, monte_carlo), keeps the rest, and notes the part's date unde
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
 and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
 bench_study.QUICK_RUNS runs of its QUICK_S; no ``list``, single or cold runs, reproduce, Monte
-Carlo or FMU. Its results are marked ``"quick": true`` and the README's table says so.
+Carlo or FMU. Its results are marked ``"quick": true`` and docs/speed.md's table says so.
 """
 
 import argparse
@@ -60,7 +60,7 @@ import bench_study
 import numba
 import numpy as np
 from commands import STARTUP, process_seconds, user_environment
-from readme_figures import RESULTS, write_readme
+from speed_figures import RESULTS, write_page
 
 from emasim.control.registry import CONTROLLERS
 from emasim.experiments.study import plan_study
@@ -325,7 +325,7 @@ def main() -> None:
     parser.add_argument(
         "--write",
         action="store_true",
-        help="store the figures in benchmarks/results.json and rewrite the README's speed table",
+        help="store the figures in benchmarks/results.json and rewrite docs/speed.md's table",
     )
     parser.add_argument("--json", help="also write the figures to this file")
     parser.add_argument(
@@ -347,8 +347,8 @@ def main() -> None:
         Path(args.json).write_text(text)
     if args.write:
         RESULTS.write_text(text)
-        write_readme(results)
-        print(f"wrote {RESULTS} and the README's speed table")
+        write_page(results)
+        print(f"wrote {RESULTS} and docs/speed.md's table")
 
 
 def report(results: dict) -> None:

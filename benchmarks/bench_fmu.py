@@ -6,7 +6,7 @@ Builds the plant FMU (drive + linkage, pythonfmu), loads it with fmpy and steps 
 (constant voltages) one control tick (1e-4 s, 10 RK4 sub-steps) at a time; then runs the same
 sub-steps in process. Reports microseconds per tick, the FMI layer's share and the ratio, best
 of five runs of 2000 ticks (``--quick``: one run of 100 ticks, for CI). ``bench_engine.py``'s
-full run calls :func:`fmu_figures` and stores the figures in ``results.json`` for the README.
+full run calls :func:`fmu_figures` and stores the figures in ``results.json`` for docs/speed.md.
 """
 
 import argparse

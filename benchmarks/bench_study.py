@@ -16,7 +16,7 @@ controller set alone, on a LocalCluster of two workers, cluster start included: 
 ``emasim reproduce --robustness`` spends on each.
 
 ``bench_engine.py`` calls :func:`study_scaling` and :func:`monte_carlo_seconds` for its
-results (and the README's speed table); run alone, this prints them. ``--quick`` (what CI
+results (and docs/speed.md's table); run alone, this prints them. ``--quick`` (what CI
 runs): QUICK_RUNS runs of QUICK_S, one repeat, and a QUICK_MC_RUNS-run Monte Carlo.
 """
 

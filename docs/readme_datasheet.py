@@ -1,11 +1,12 @@
-"""The README's acceptance datasheet, rendered from ``docs/datasheet.json``: the figures
-``emasim acceptance bench-step`` measured for bench-step's controller sets.
+"""The acceptance datasheet of docs/acceptance.md, rendered from ``docs/datasheet.json``: the
+figures ``emasim acceptance bench-step`` measured for bench-step's controller sets.
 
     python docs/readme_datasheet.py SHEET_FOLDER   # store SHEET_FOLDER/datasheet.json and its
-                                                   # bode.png in docs/, rewrite the README
-    python docs/readme_datasheet.py                # rewrite the README from docs/
+                                                   # bode.png in docs/, rewrite the page
+    python docs/readme_datasheet.py                # rewrite the page from docs/
 
-The README holds the table between ``<!-- datasheet:begin -->`` and ``<!-- datasheet:end -->``;
+docs/acceptance.md holds the table between ``<!-- datasheet:begin -->`` and
+``<!-- datasheet:end -->`` (the file keeps its name from when the README held it);
 ``tests/test_acceptance.py`` checks that the block equals :func:`render` of the stored sheet.
 Standard library only.
 """
@@ -18,9 +19,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "datasheet.json"
 BODE = ROOT / "docs" / "acceptance-bode.png"
-README = ROOT / "README.md"
+PAGE = ROOT / "docs" / "acceptance.md"
 BEGIN, END = "<!-- datasheet:begin -->", "<!-- datasheet:end -->"
-ROWS = (  # datasheet key, the README's wording, unit
+ROWS = (  # datasheet key, the table's wording, unit
     ("bandwidth_small_Hz", "bandwidth (-3 dB), small signal", "Hz"),
     ("phase_90_small_Hz", "-90 deg phase, small signal", "Hz"),
     ("bandwidth_large_Hz", "bandwidth (-3 dB), large signal", "Hz"),
@@ -40,7 +41,7 @@ def number(x) -> str:
 
 
 def render(sheet: dict) -> str:
-    """The Markdown between the README's markers (ends with a newline)."""
+    """The Markdown between the page's markers (ends with a newline)."""
     labels = list(sheet["sets"])
     first = sheet["sets"][labels[0]]
     lines = [
@@ -64,10 +65,10 @@ def main() -> None:
         folder = Path(sys.argv[1])
         STORE.write_text((folder / "datasheet.json").read_text())
         shutil.copyfile(folder / "bode.png", BODE)
-    text = README.read_text()
+    text = PAGE.read_text()
     start = text.index(BEGIN + "\n") + len(BEGIN) + 1
     sheet = json.loads(STORE.read_text())
-    README.write_text(text[:start] + render(sheet) + text[text.index(END, start) :])
+    PAGE.write_text(text[:start] + render(sheet) + text[text.index(END, start) :])
 
 
 if __name__ == "__main__":

@@ -1,21 +1,24 @@
-"""The README's headline tables, rendered from ``docs/headline.json``,
-``docs/robustness.json`` and ``docs/verdict_map.json``: the abstract's five figures, the
-paper's beside ours, as ``emasim reproduce`` measured them, their robustness over the plant
-uncertainty and where each verdict flips, as ``emasim reproduce --robustness`` measured them.
+"""The headline tables of the README and of docs/paper.md, rendered from
+``docs/headline.json``, ``docs/robustness.json`` and ``docs/verdict_map.json``: the abstract's
+five figures, the paper's beside ours, as ``emasim reproduce`` measured them, their robustness
+over the plant uncertainty and where each verdict flips, as ``emasim reproduce --robustness``
+measured them.
 
     python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's headline
                                                    # (and robustness and verdict map, when it
-                                                   # has them) in docs/, rewrite the README
-    python docs/readme_headline.py                 # rewrite the README from docs/
+                                                   # has them) in docs/, rewrite the pages
+    python docs/readme_headline.py                 # rewrite the pages from docs/
 
-The README holds the tables between ``<!-- headline:begin -->`` and ``<!-- headline:end -->``,
-``<!-- robustness:begin -->`` and ``<!-- robustness:end -->``, and ``<!-- verdict-map:begin
--->`` and ``<!-- verdict-map:end -->``; ``tests/test_reproduce.py`` checks that the blocks
-equal :func:`render`, :func:`render_robustness` and :func:`render_verdict_map` of the stored
-objects, that a fresh reproduction measures the stored headline and the stored map's nominal
-cells, and that its verdicts agree with the stored robustness; ``tests/test_verdict_map.py``
-re-runs one cell of the stored map off the nominal bench. Standard library only, but for the
-map's lines (emasim.analysis.verdict_map).
+The README and docs/paper.md hold the headline table between ``<!-- headline:begin -->`` and
+``<!-- headline:end -->``; docs/paper.md holds the robustness table between ``<!--
+robustness:begin -->`` and ``<!-- robustness:end -->``, and the verdict map's lines between
+``<!-- verdict-map:begin -->`` and ``<!-- verdict-map:end -->`` (:data:`PAGES`).
+``tests/test_reproduce.py`` checks that the blocks equal :func:`render`,
+:func:`render_robustness` and :func:`render_verdict_map` of the stored objects, that a fresh
+reproduction measures the stored headline and the stored map's nominal cells, and that its
+verdicts agree with the stored robustness; ``tests/test_verdict_map.py`` re-runs one cell of
+the stored map off the nominal bench. Standard library only, but for the map's lines
+(emasim.analysis.verdict_map).
 """
 
 import json
@@ -27,19 +30,21 @@ STORE = ROOT / "docs" / "headline.json"
 ROBUSTNESS = ROOT / "docs" / "robustness.json"
 VERDICT_MAP = ROOT / "docs" / "verdict_map.json"
 README = ROOT / "README.md"
+PAPER = ROOT / "docs" / "paper.md"
 BLOCKS = {
     "headline": "<!-- headline:{}-->",
     "robustness": "<!-- robustness:{}-->",
     "verdict-map": "<!-- verdict-map:{}-->",
 }
-NAMES = {  # headline key -> the README's wording
+PAGES = {"headline": (README, PAPER), "robustness": (PAPER,), "verdict-map": (PAPER,)}
+NAMES = {  # headline key -> the tables' wording
     "step_steady_error_reduction": "step steady-state error (RMS)",
     "step_vibration_amplitude_reduction": "step vibration amplitude",
     "step_speed_fluctuation_reduction": "step speed fluctuation",
     "sine_displacement_lag_reduction": 'sine tracking error ("lag")',
     "sine_speed_fluctuation_reduction": "sine speed fluctuation",
 }
-COSTS = {  # robustness key -> the README's wording
+COSTS = {  # robustness key -> the table's wording
     "bench_step_tuning_cost": "tuning cost, step",
     "bench_sine_tuning_cost": "tuning cost, sine",
 }
@@ -87,7 +92,7 @@ def map_wins(vmap: dict | None, key: str) -> str:
 
 
 def render(headline: dict, verdicts: dict | None = None, vmap: dict | None = None) -> str:
-    """The README's table of the headline object of tables.json: the paper's figures, ours as
+    """The table of the headline object of tables.json: the paper's figures, ours as
     the bench measures them against both PID variants, the true angle's beside them and, with
     a robustness study (``verdicts``), the hybrid's win rate against each variant, and with a
     verdict map (``vmap``) the cells of it the hybrid wins against each."""
@@ -173,7 +178,7 @@ def negated(x: float | None) -> float | None:
 
 
 def render_robustness(verdicts: dict, headline: dict) -> str:
-    """The README's table of the robustness object of tables.json, the nominal bench's
+    """The table of the robustness object of tables.json, the nominal bench's
     improvement (the headline object) beside it."""
     lines = [
         "| figure | hybrid better than PID on | median change, hybrid against PID "
@@ -221,7 +226,7 @@ def render_robustness(verdicts: dict, headline: dict) -> str:
 
 
 def render_verdict_map(vmap: dict) -> str:
-    """The README's list of where each verdict flips: the lines of
+    """The list of where each verdict flips: the lines of
     emasim.analysis.verdict_map.flip_lines, read off the stored map."""
     from emasim.analysis.verdict_map import flip_lines
 
@@ -229,23 +234,27 @@ def render_verdict_map(vmap: dict) -> str:
 
 
 def block_of(text: str, name: str) -> str:
-    """The README's text between the block's markers, without the newlines that frame it."""
+    """A page's text between the block's markers, without the newlines that frame it."""
     begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
     return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
 
 
-def write_readme(headline: dict, verdicts: dict, vmap: dict) -> None:
-    text = README.read_text()
+def write_pages(headline: dict, verdicts: dict, vmap: dict) -> None:
+    """Rewrite each block on each of its :data:`PAGES`."""
     blocks = {
         "headline": render(headline, verdicts, vmap),
         "robustness": render_robustness(verdicts, headline),
         "verdict-map": render_verdict_map(vmap),
     }
-    for name, body in blocks.items():
-        begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
-        start, stop = text.index(begin) + len(begin), text.index(end)
-        text = text[:start] + "\n" + body + "\n" + text[stop:]
-    README.write_text(text)
+    for page in dict.fromkeys(p for pages in PAGES.values() for p in pages):
+        text = page.read_text()
+        for name, body in blocks.items():
+            if page not in PAGES[name]:
+                continue
+            begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
+            start, stop = text.index(begin) + len(begin), text.index(end)
+            text = text[:start] + "\n" + body + "\n" + text[stop:]
+        page.write_text(text)
 
 
 def main() -> None:
@@ -256,7 +265,7 @@ def main() -> None:
             ROBUSTNESS.write_text(json.dumps(tables["robustness"], indent=1) + "\n")
         if "verdict_map" in tables:
             VERDICT_MAP.write_text(json.dumps(tables["verdict_map"], indent=1) + "\n")
-    write_readme(
+    write_pages(
         json.loads(STORE.read_text()),
         json.loads(ROBUSTNESS.read_text()),
         json.loads(VERDICT_MAP.read_text()),

@@ -38,27 +38,27 @@ def test_the_linkage_turns_the_rudder_to_the_command(coupled):
     assert np.abs(coupled["linkage_actuator_angle_rad"]).max() > 0  # the actuator swings
 
 
-README_STEPS_S = (1e-4, 5e-4, 1e-3, 5e-3)  # the README's table of departures, in order
+STEPS_S = (1e-4, 5e-4, 1e-3, 5e-3)  # docs/bench.md's table of departures, in order
 
 
-def readme_departures() -> list[str]:
-    """The cells of the README's row of RMS departures (deg), as written."""
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    (row,) = [line for line in readme.splitlines() if line.startswith("| RMS rudder-angle")]
+def documented_departures() -> list[str]:
+    """The cells of docs/bench.md's row of RMS departures (deg), as written."""
+    page = (Path(__file__).parents[1] / "docs" / "bench.md").read_text()
+    (row,) = [line for line in page.splitlines() if line.startswith("| RMS rudder-angle")]
     return [cell.strip().removesuffix("°") for cell in row.strip("|").split("|")[1:]]
 
 
 def test_cosimulation_converges_to_the_coupled_solution_as_the_step_shrinks(coupled):
     """The RMS departure of the rudder angle from the coupled run vanishes as Tc -> Ts and
-    grows with Tc; the README's table holds these numbers, to the digits it shows."""
+    grows with Tc; docs/bench.md's table holds these numbers, to the digits it shows."""
     rms = []
-    for step in README_STEPS_S:
+    for step in STEPS_S:
         difference = rudder_deg(cosim(step)) - rudder_deg(coupled)
         rms.append(float(np.sqrt(np.mean(difference**2))))
     assert rms[0] < 2e-3
     assert rms == sorted(rms)
     assert rms[-1] > 0.02  # a 5 ms exchange is visibly off: the check can fail
-    assert readme_departures() == [f"{float(f'{value:.2g}'):g}" for value in rms]
+    assert documented_departures() == [f"{float(f'{value:.2g}'):g}" for value in rms]
 
 
 def test_cosimulation_needs_a_linkage_and_a_whole_number_of_ticks():

@@ -62,9 +62,9 @@ def test_the_emps_scenario_states_the_measured_delay_figures(measured):
 
 
 def test_the_free_run_errors_are_below_the_published_reference_models(measured):
-    """The README's claim: with the output-error values, every relative error of the free
-    run (position, velocity, acceleration, force) is below the published reference model's, on
-    the training and on the cross-validation set."""
+    """docs/calibration.md's claim: with the output-error values, every relative error of the
+    free run (position, velocity, acceleration, force) is below the published reference
+    model's, on the training and on the cross-validation set."""
     for set_name in ("training", "pulses"):
         ours = measured["symmetric"][set_name]
         theirs = measured["published"]["forward_pct"][set_name]

@@ -1,5 +1,7 @@
-"""The README's examples run as written."""
+"""The examples of the README and of the docs pages its details live on run as written; the
+links stay in the project."""
 
+import re
 import shlex
 import tomllib
 from pathlib import Path
@@ -10,13 +12,20 @@ from typer.testing import CliRunner
 from emasim.cli import app
 from emasim.scenarios.loader import read_scenario_file, validate_scenario
 
-README = (Path(__file__).parents[1] / "README.md").read_text()
-DOCS = Path(__file__).parents[1] / "docs"
+ROOT = Path(__file__).parents[1]
+README = (ROOT / "README.md").read_text()
+DOCS = ROOT / "docs"
+PAGES = [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
+# The pages whose Python examples run here, in this order and in one namespace, as a reader
+# runs them: the README's sections on the command line and Python moved to the guide, the
+# datasheet and python-control bridge to the acceptance page.
+RUNNABLE = [ROOT / "README.md", DOCS / "guide.md", DOCS / "acceptance.md"]
+TEXT = "".join(page.read_text() for page in PAGES)
 
 
-def blocks(language: str, text: str = README) -> list[str]:
-    """The fenced code blocks of ``text`` (the README) whose info string is ``language`` (''
-    for plain blocks)."""
+def blocks(language: str, text: str = TEXT) -> list[str]:
+    """The fenced code blocks of ``text`` (the README and the docs pages) whose info string is
+    ``language`` ('' for plain blocks)."""
     found, current, info = [], None, None
     for line in text.splitlines(keepends=True):
         if line.startswith("```"):
@@ -32,7 +41,8 @@ def blocks(language: str, text: str = README) -> list[str]:
 
 
 def toml_block(starting: str) -> str:
-    """The one TOML block of the README whose first line starts with ``starting``."""
+    """The one TOML block of the README and the docs whose first line starts with
+    ``starting``."""
     (found,) = [b for b in blocks("toml") if b.startswith(starting)]
     return found
 
@@ -59,15 +69,16 @@ def test_the_realistic_bench_options_are_valid_on_a_bench_scenario():
 def test_the_python_examples_run(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__main__"}  # as a script runs them
-    for code in blocks("python"):
-        exec(code, namespace)  # noqa: S102 - the README's own examples
+    for page in RUNNABLE:
+        for code in blocks("python", page.read_text()):
+            exec(code, namespace)  # noqa: S102 - the project's own examples
     assert (tmp_path / "runs" / "wide-gap" / "result.parquet").is_file()
     assert namespace["setup"].speed.function is namespace["my_speed_law"]
     assert list(namespace["study"].table["plant.backlash.width_mm"]) == [0.05, 0.2]
 
 
 def test_the_study_examples_are_valid_studies():
-    """Each ``emasim study`` command of the README's bash blocks plans (every sample valid)."""
+    """Each ``emasim study`` command of the bash blocks plans (every sample valid)."""
     from emasim.experiments.study import StudySpec, plan_study
 
     lines = "".join(blocks("bash")).replace("\\\n", " ").splitlines()
@@ -91,9 +102,9 @@ def test_the_study_examples_are_valid_studies():
         assert plan_study(spec).jobs
 
 
-def test_the_error_examples_print_what_the_readme_says(tmp_path, monkeypatch):
-    """Each ``$ emasim ...`` line of the README's plain code blocks, run here, prints the line
-    below it (one line, exit 2). ``thesis`` is a user's folder holding a file."""
+def test_the_error_examples_print_what_the_docs_say(tmp_path, monkeypatch):
+    """Each ``$ emasim ...`` line of the plain code blocks, run here, prints the line below it
+    (one line, exit 2). ``thesis`` is a user's folder holding a file."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "thesis").mkdir()
     (tmp_path / "thesis" / "thesis.tex").write_text("years of work")
@@ -112,10 +123,10 @@ def test_the_error_examples_print_what_the_readme_says(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]
 
 
-def test_the_metric_windows_the_readme_states_are_the_codes():
+def test_the_metric_windows_the_docs_state_are_the_codes():
     from emasim.analysis import report
 
-    text = " ".join(README.split())
+    text = " ".join((DOCS / "model.md").read_text().split())
     assert (
         f"the recovery band is {100 * report.RECOVERY_FRACTION:g} % of the dip, but at least "
         f"{report.RECOVERY_FLOOR_RPM:g} rpm (speed) or {1e3 * report.RECOVERY_FLOOR_MM:g} µm"
@@ -128,9 +139,8 @@ def test_every_shell_block_of_the_readme_and_the_docs_is_valid_bash():
     """``bash -n`` on each bash block: an unquoted ``linspace(...)`` is a syntax error there."""
     import subprocess
 
-    pages = [Path(__file__).parents[1] / "README.md", *sorted(DOCS.glob("*.md"))]
     found = 0
-    for page in pages:
+    for page in PAGES:
         for code in blocks("bash", page.read_text()):
             found += 1
             check = subprocess.run(["bash", "-n"], input=code, capture_output=True, text=True)
@@ -142,3 +152,36 @@ def test_every_python_block_of_the_docs_compiles():
     for page in sorted(DOCS.glob("*.md")):
         for code in blocks("python", page.read_text()):
             compile(code, page.name, "exec")
+
+
+def slug(heading: str) -> str:
+    """A heading's anchor as the docs site (Python-Markdown's toc) and GitHub make it."""
+    text = re.sub(r"[^\w\s-]", "", heading.replace("`", "")).strip().lower()
+    return re.sub(r"[-\s]+", "-", text)
+
+
+def anchors(page: Path) -> set[str]:
+    return {
+        slug(line.lstrip("#")) for line in page.read_text().splitlines() if line.startswith("#")
+    }
+
+
+def test_every_relative_link_of_the_readme_and_the_docs_is_a_file_of_the_project():
+    """Each link without a scheme names a file inside the project (nothing beside it, such as
+    ../shared), and its #anchor a heading of that page. The README stays a front page."""
+    link = re.compile(r"\]\(([^)\s]+)\)")
+    checked = 0
+    for page in PAGES:
+        for target in link.findall(page.read_text()):
+            if re.match(r"[a-z]+:", target):
+                continue
+            path, _, anchor = target.partition("#")
+            resolved = (page.parent / path).resolve() if path else page
+            assert resolved.is_relative_to(ROOT.resolve()), (page.name, target)
+            assert resolved.is_file(), (page.name, target)
+            if anchor and resolved.suffix == ".md":
+                assert anchor in anchors(resolved), (page.name, target)
+            checked += 1
+    assert checked >= 20
+    assert "../" not in README and "shared/" not in README
+    assert len(README.splitlines()) <= 250

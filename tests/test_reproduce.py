@@ -63,14 +63,17 @@ def test_headline_has_the_five_figures_with_both_sides(report):
 
 
 def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
-    """The README's table is docs/headline.json rendered, and a fresh reproduction measures
-    those numbers (runs are deterministic: tests/test_fingerprints.py)."""
+    """The README's table (and docs/paper.md's, the same) is docs/headline.json rendered, and a
+    fresh reproduction measures those numbers (runs are deterministic:
+    tests/test_fingerprints.py)."""
     module = module_at("docs/readme_headline.py")
     stored = json.loads(module.STORE.read_text())
-    readme = (ROOT / "README.md").read_text()
+    readme = module.README.read_text()
     robust = json.loads(module.ROBUSTNESS.read_text())
     vmap = json.loads(module.VERDICT_MAP.read_text())
-    assert module.block_of(readme, "headline") == module.render(stored, robust, vmap)
+    assert module.PAGES["headline"] == (module.README, module.PAPER)
+    for page in module.PAGES["headline"]:
+        assert module.block_of(page.read_text(), "headline") == module.render(stored, robust, vmap)
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
@@ -141,7 +144,7 @@ def test_the_readmes_verdict_line_says_all_five_only_when_the_monte_carlo_settle
 
 
 def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
-    """The README's robustness table is docs/robustness.json rendered; and on every headline
+    """docs/paper.md's robustness table is docs/robustness.json rendered; and on every headline
     figure a fresh reproduction of the nominal bench improves on PID by an amount inside the
     Monte Carlo's 5-95 % spread of improvements. The margins are the Monte Carlo's: a change
     that flips a verdict the Monte Carlo settles (its spread on one side of zero) fails here;
@@ -149,8 +152,8 @@ def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
     module = module_at("docs/readme_headline.py")
     robust = json.loads(module.ROBUSTNESS.read_text())
     stored = json.loads(module.STORE.read_text())
-    readme = (ROOT / "README.md").read_text()
-    assert module.block_of(readme, "robustness") == module.render_robustness(robust, stored)
+    page = module.PAPER.read_text()
+    assert module.block_of(page, "robustness") == module.render_robustness(robust, stored)
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in measured.items():
         spread = (robust[key]["improvement_p05_pct"], robust[key]["improvement_p95_pct"])
@@ -164,7 +167,7 @@ def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
 
 
 def test_the_verdict_maps_nominal_cells_are_this_reproductions_headline(report):
-    """docs/verdict_map.json (the README's lines of where each verdict flips) holds, at the
+    """docs/verdict_map.json (docs/paper.md's lines of where each verdict flips) holds, at the
     nominal bench's cell, the very figures a fresh reproduction measures against both PID
     variants: the map is of today's bench and gains."""
     from emasim.analysis.judged import PID_LABEL

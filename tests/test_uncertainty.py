@@ -1,5 +1,5 @@
 """The Monte Carlo's uncertainty table (emasim.experiments.uncertainty): every range validates
-on the bench experiments, the README's table is the code's, the verdicts' sensitivity to each
+on the bench experiments, docs/paper.md's table is the code's, the verdicts' sensitivity to each
 parameter's thirds, and the draws' --seed."""
 
 import re
@@ -12,24 +12,24 @@ import pytest
 from emasim.experiments import robustness
 from emasim.experiments.study import _resolved, plan_study
 from emasim.experiments.uncertainty import (
-    README_BEGIN,
-    README_END,
     ROWS,
     SEED,
+    TABLE_BEGIN,
+    TABLE_END,
     UNCERTAINTY,
     markdown,
 )
 from emasim.experiments.variation import parse_variation
 from emasim.scenarios.loader import load_scenario
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAPER = Path(__file__).resolve().parents[1] / "docs" / "paper.md"
 
 
-def test_the_readme_holds_the_codes_table():
-    text = README.read_text(encoding="utf-8")
-    found = re.search(re.escape(README_BEGIN) + r"\n(.*?)\n" + re.escape(README_END), text, re.S)
-    assert found, "README.md lacks the uncertainty table's markers"
-    assert found.group(1) == markdown(), "README's uncertainty table differs from ROWS"
+def test_the_docs_hold_the_codes_table():
+    text = PAPER.read_text(encoding="utf-8")
+    found = re.search(re.escape(TABLE_BEGIN) + r"\n(.*?)\n" + re.escape(TABLE_END), text, re.S)
+    assert found, "docs/paper.md lacks the uncertainty table's markers"
+    assert found.group(1) == markdown(), "docs/paper.md's uncertainty table differs from ROWS"
 
 
 def test_every_row_has_a_name_and_a_reason_and_the_issues_parameters_are_sampled():

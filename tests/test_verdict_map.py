@@ -1,6 +1,6 @@
 """Where each verdict flips (emasim.experiments.verdict_map, emasim.analysis.verdict_map): the
 grid is the bench's own at its nominal cell, the lines say what the margins say, and the stored
-map (docs/verdict_map.json, the README's) is what the code measures off the nominal bench."""
+map (docs/verdict_map.json, docs/paper.md's) is what the code measures off the nominal bench."""
 
 import json
 import math
@@ -29,7 +29,7 @@ from emasim.jsonio import finite_or_none
 from emasim.plant.presets import ttl_rudder_encoder
 from emasim.scenarios.loader import load_scenario
 
-README_MODULE = "docs/readme_headline.py"
+HEADLINE_MODULE = "docs/readme_headline.py"
 
 
 def test_the_nominal_cell_is_the_shipped_bench():
@@ -119,14 +119,14 @@ def test_without_its_studies_there_is_no_map(tmp_path):
 
 @pytest.fixture(scope="module")
 def stored():
-    return json.loads(module_at(README_MODULE).VERDICT_MAP.read_text())
+    return json.loads(module_at(HEADLINE_MODULE).VERDICT_MAP.read_text())
 
 
-def test_the_readmes_lines_are_the_stored_maps():
-    module = module_at(README_MODULE)
-    readme = module.README.read_text()
+def test_the_docs_lines_are_the_stored_maps():
+    module = module_at(HEADLINE_MODULE)
+    page = module.PAPER.read_text()
     vmap = json.loads(module.VERDICT_MAP.read_text())
-    assert module.block_of(readme, "verdict-map") == module.render_verdict_map(vmap)
+    assert module.block_of(page, "verdict-map") == module.render_verdict_map(vmap)
 
 
 def test_the_stored_map_covers_every_headline_figure_against_both_baselines(stored):

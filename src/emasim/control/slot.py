@@ -101,7 +101,8 @@ class Compiled:
             name = getattr(self.function, "__name__", repr(self.function))
             raise InputError(
                 f"the control law {name} is a plain Python function; compile it with "
-                "numba.njit(emasim.control.slot.CONTROLLER_SIG) (README: a controller of your own)"
+                "numba.njit(emasim.control.slot.CONTROLLER_SIG) "
+                "(docs/guide.md: a controller of your own)"
             )
         if signature.args not in self.function.overloads:
             self.function.compile(signature)

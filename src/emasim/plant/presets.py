@@ -2,7 +2,8 @@
 
 Every number is here, once, with where it comes from. "paper" means Ding & Zhou, Actuators 2025,
 14(11), 526; "ours" means the paper is silent and the value is our engineering choice (see
-docs/assumptions in the README). Scenario files start from :data:`PRESETS` and override fields.
+"Our assumptions" in docs/model.md). Scenario files start from :data:`PRESETS` and override
+fields.
 """
 
 import math

@@ -1,10 +1,10 @@
-"""The README's speed figures, rendered from ``benchmarks/results.json``: the one place they are
-worded and formatted.
+"""The speed figures of docs/speed.md, rendered from ``benchmarks/results.json``: the one place
+they are worded and formatted.
 
-    python benchmarks/readme_figures.py      # rewrite the README's block from results.json
+    python benchmarks/speed_figures.py       # rewrite docs/speed.md's block from results.json
 
-``bench_engine.py --write`` measures, stores ``results.json`` and calls :func:`write_readme`.
-The README holds the figures between ``<!-- speed-figures:begin -->`` and
+``bench_engine.py --write`` measures, stores ``results.json`` and calls :func:`write_page`.
+docs/speed.md holds the figures between ``<!-- speed-figures:begin -->`` and
 ``<!-- speed-figures:end -->`` and nowhere else; ``tests/test_speed_figures.py`` checks that the
 block equals :func:`render` of the stored results. Standard library only: the test loads this
 file by path and runs no simulation.
@@ -21,7 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results.json"
-README = ROOT / "README.md"
+PAGE = ROOT / "docs" / "speed.md"
 BEGIN = "<!-- speed-figures:begin -->"
 END = "<!-- speed-figures:end -->"
 MISSING = "not measured"
@@ -236,7 +236,7 @@ def fmu_rows(results: dict) -> list[tuple[str, str, str]]:
 
 
 def render(results: dict) -> str:
-    """The Markdown between the README's markers (ends with a newline)."""
+    """The Markdown between the page's markers (ends with a newline)."""
     lines = []
     if results.get("quick"):
         lines += [
@@ -270,12 +270,12 @@ def replace_block(text: str, block: str) -> str:
     return text[:start] + block + text[text.index(END, start) :]
 
 
-def write_readme(results: dict, path: Path = README) -> None:
+def write_page(results: dict, path: Path = PAGE) -> None:
     path.write_text(replace_block(path.read_text(), render(results)))
 
 
 def main() -> None:
-    write_readme(json.loads(RESULTS.read_text()))
+    write_page(json.loads(RESULTS.read_text()))
 
 
 if __name__ == "__main__":
