@@ -175,7 +175,7 @@ def test_the_datasheet_holds_every_figure_with_its_definition(datasheet):
         assert (out / name).stat().st_size > 0
     html = (out / "report.html").read_text()
     assert "threshold_mm" in html and '<img src="bode.png"' in html
-    assert "bandwidth_small_Hz" in output
+    assert "bandwidth small" in output and f"linear model of PI: {ac.LINEAR_MODEL}" in output
     assert foreign_files(out) == []  # every file the datasheet wrote is in its manifest
 
 

@@ -878,19 +878,22 @@ def acceptance(
 
 
 def _print_datasheet(result) -> None:
+    """The datasheet's figures, a row each (the name in words, wrapped, and its unit), a column
+    per set; then each set's linear model, or why it has none."""
     if not _loud():
         return
     from .analysis.datasheet import cell
-    from .analysis.units import unit_of
 
     table = Table(title=f"{result.scenario.name}: acceptance datasheet")
-    table.add_column("figure")
-    table.add_column("unit")
+    table.add_column("figure", overflow="fold", ratio=1)
+    table.add_column("unit", no_wrap=True)
     for name in result.figures:
-        table.add_column(name, justify="right")
+        table.add_column(name, justify="right", no_wrap=True)
     for key in next(iter(result.figures.values())):
-        table.add_row(key, unit_of(key), *(cell(f[key]) for f in result.figures.values()))
+        table.add_row(*_in_words(key), *(cell(f[key]) for f in result.figures.values()))
     console.print(table)
+    for label, text in result.meta["linear_model"].items():
+        console.print(f"linear model of {label}: {text}", highlight=False, markup=False)
 
 
 @app.command()
