@@ -115,7 +115,7 @@ def test_the_linearisation_takes_the_mesh_in():
     """emasim.linearize differentiates the generated plant, so the mesh's states are in the
     model with no edit to emasim.linear, and the loop still tracks at DC with stable poles."""
     scenario = load_scenario("position-step", settings=['plant.preset="sea805-coupling"'])
-    plant = linearize(scenario, loop="plant")
+    plant = linearize(scenario, kind="plant")
     assert {"screw_angle_rad", "screw_speed_rad_s"} <= set(plant.state_labels)
     loop = linearize(scenario)
     assert control.dcgain(loop) == pytest.approx(1.0, abs=1e-9)

@@ -217,7 +217,7 @@ def test_the_inner_loop_broken_with_the_outer_one_closed_is_the_same_loop():
     closed: closing L again gives the closed loop's poles, every one stable. (Its margins are
     not checked: with the outer loop closed inside it, L crosses unity more than once.)"""
     s = scenario("position-step", *POSITION_CASES["pid-rod"])
-    open_loop = linearize(s, loop="open", broken_at="speed")
+    open_loop = linearize(s, kind="open", broken_at="speed")
     assert open_loop.input_labels == ["motor_speed_rad_s_fed_back"]
     again = np.sort_complex(control.feedback(open_loop, 1).poles())
     closed = np.sort_complex(linearize(s).poles())
@@ -226,7 +226,7 @@ def test_the_inner_loop_broken_with_the_outer_one_closed_is_the_same_loop():
     assert np.all(nearest <= 1e-6 * np.abs(again) + 1e-9)
     assert np.all(again.real < 0)
     with pytest.raises(InputError, match="broken_at must be"):
-        linearize(scenario("speed-step", ["speed=pi"], []), loop="open", broken_at="position")
+        linearize(scenario("speed-step", ["speed=pi"], []), kind="open", broken_at="position")
 
 
 def test_the_discrete_loop_refuses_a_feed_forward_and_other_loops():
@@ -234,7 +234,7 @@ def test_the_discrete_loop_refuses_a_feed_forward_and_other_loops():
     with pytest.raises(InputError, match="feed-forward reads them"):
         linearize(s, discrete=True)
     with pytest.raises(InputError, match="closed loop only"):
-        linearize(s, discrete=True, loop="open")
+        linearize(s, discrete=True, kind="open")
 
 
 OPEN_LOOP_CASES = {  # laws on the error alone, no feed-forward: then T = L / (1 + L)
@@ -245,11 +245,11 @@ OPEN_LOOP_CASES = {  # laws on the error alone, no feed-forward: then T = L / (1
 
 @pytest.mark.parametrize("case", OPEN_LOOP_CASES)
 def test_the_open_loop_closes_into_the_closed_loop_and_has_margins(case):
-    """loop="open" breaks the loop at its feedback: for a law that acts on the error alone,
+    """kind="open" breaks the loop at its feedback: for a law that acts on the error alone,
     L / (1 + L) is the closed loop, and the margins of L are finite and positive."""
     name, controllers, settings = OPEN_LOOP_CASES[case]
     s = scenario(name, controllers, settings)
-    closed, open_loop = linearize(s), linearize(s, loop="open")
+    closed, open_loop = linearize(s), linearize(s, kind="open")
     w = 2 * np.pi * np.geomspace(0.1, 1e3, 30)
     big_l = control.frequency_response(open_loop, w).complex
     t = control.frequency_response(closed, w).complex
@@ -270,7 +270,7 @@ def test_the_open_loop_closes_into_the_closed_loop_and_has_margins(case):
         ("position-step", ["position=rbf-smc", "speed=pi"], [], {}, "'rbf-smc'"),
         ("position-step", ["position=pid", "speed=st"], [], {}, "speed controller 'st'"),
         ("position-step", ["position=pid", "speed=pi"], [], {"gaps": "open"}, "gaps must be"),
-        ("position-step", ["position=pid", "speed=pi"], [], {"loop": "x"}, "loop must be"),
+        ("position-step", ["position=pid", "speed=pi"], [], {"kind": "x"}, "kind must be"),
         ("position-step", ["position=pid", "speed=pi"], [], {"at_s": 99.0}, "at_s must be"),
         ("bench-step", ["position=pid", "speed=pi"], [], {}, "clearance-joint linkage"),
         (
@@ -332,11 +332,11 @@ def test_the_ports_are_chosen_only_where_they_mean_something():
     s = scenario("position-step", *POSITION_CASES["pid-rod"])
     current = linearize(s, output="iq_A")
     assert current.output_labels == ["iq_A"] and current.input_labels == ["position_ref_m"]
-    assert linearize(s, loop="plant").input_labels == ["vd", "vq", "rod_force_N"]
+    assert linearize(s, kind="plant").input_labels == ["vd", "vq", "rod_force_N"]
     for kwargs, match in (
         ({"input": "torque"}, "input must be one of reference, rod_force_N"),
         ({"output": "rudder"}, "output must be one of id_A"),
-        ({"loop": "plant", "input": "rod_force_N"}, "loop='plant' has its own"),
+        ({"kind": "plant", "input": "rod_force_N"}, "kind='plant' has its own"),
         ({"discrete": True, "output": "iq_A"}, "discrete=True has its own"),
     ):
         with pytest.raises(InputError, match=match):
@@ -344,3 +344,17 @@ def test_the_ports_are_chosen_only_where_they_mean_something():
     speed = scenario("speed-step", ["speed=pi"], [])
     with pytest.raises(InputError, match="output must be one of id_A, iq_A, motor_speed_rad_s,"):
         linearize(speed, output="measured_position_m")
+
+
+def test_a_name_and_a_label_read_the_scenario_as_the_command_line_does():
+    """linearize takes a scenario's name with label, controllers and settings, as emasim.run
+    does: the same model as from load_scenario; a comparison's name without a label, and
+    those options with a Scenario, are refused in one line."""
+    named = linearize("position-step", label="PI", settings=LINEAR)
+    loaded = linearize(load_scenario("position-step", settings=LINEAR, label="PI"))
+    np.testing.assert_array_equal(named.A, loaded.A)
+    np.testing.assert_array_equal(named.C, loaded.C)
+    with pytest.raises(InputError, match="position-step compares PI, .*: choose one with label="):
+        linearize("position-step")
+    with pytest.raises(InputError, match="linearize: label, controllers and settings apply"):
+        linearize(load_scenario("position-step"), label="PI")

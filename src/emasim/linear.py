@@ -54,7 +54,7 @@ The feed-forwards differentiate the reference: the loop is built with r, dr/dt (
 as separate inputs, T_k(s) = C (sI - A)^-1 b_k + d_k, and combined exactly as
 T(s) = sum_k s^k T_k(s) (emasim.control.continuous.with_rates).
 
-``loop`` chooses the model: "closed" (reference -> the fed-back signal), "open" (the loop
+``kind`` chooses the model: "closed" (reference -> the fed-back signal), "open" (the loop
 broken at a feedback, ``broken_at``: the position or the motor speed, by default the
 outermost: L from the reading the controller gets, ``<reading>_fed_back``, to the reading the
 plant gives, the references zero and any inner loop closed, so that the loop closed there is
@@ -76,6 +76,9 @@ point, and, until their small-signal models are checked against the simulation a
 plants' are (tests/test_linear.py), the clearance-joint linkage and the load motor: the bench.
 """
 
+from collections.abc import Sequence
+from pathlib import Path
+
 import control
 
 from .config import RPM
@@ -85,23 +88,27 @@ from .control.pid import PositionPID, SpeedPI
 from .discrete_loop import tick_map
 from .errors import InputError
 from .plant import actuator as A
+from .scenarios.loader import as_scenario
 from .scenarios.schema import Scenario
 from .sim.setup import plant_facts
 from .small_signal import READINGS, operating_point, plant_model, small_signal_plant, state_at
 
 GAPS = ("closed", "as is")
-LOOPS = ("closed", "open", "plant")
+KINDS = ("closed", "open", "plant")
 PORT_INPUTS = ("reference", "rod_force_N")
 
 
 def linearize(
-    scenario: Scenario,
+    scenario: "Scenario | str | Path",
     *,
+    label: str | None = None,
+    controllers: Sequence[str] = (),
+    settings: Sequence[str] = (),
     operating_speed_rpm: float = 0.0,
     at_s: float | None = None,
     gaps: str = "closed",
     friction: bool = False,
-    loop: str = "closed",
+    kind: str = "closed",
     broken_at: str | None = None,
     discrete: bool = False,
     input: str = "reference",
@@ -111,13 +118,16 @@ def linearize(
 
     Parameters
     ----------
-    scenario : a validated Scenario.
+    scenario : a validated Scenario, or a shipped scenario's name or a TOML file's path, read
+        with ``label``, ``controllers`` and ``settings`` as ``emasim run`` reads ``--label``,
+        ``--controller`` and ``--set``; a comparison's name needs a label or controllers (its
+        sets are different loops).
     operating_speed_rpm : the steady motor speed w0 to linearise about (id = 0).
     at_s : linearise about the state the scenario's run reaches at this time instead.
     gaps : "closed" (each play closed, in loaded contact) or "as is".
     friction : linearise the friction at the operating point (default: dropped).
-    loop : "closed", "open" or "plant".
-    broken_at : where loop="open" cuts: "position" or "speed" (the inner loop, the outer one
+    kind : "closed", "open" or "plant".
+    broken_at : where kind="open" cuts: "position" or "speed" (the inner loop, the outer one
         closed); default the outermost feedback.
     discrete : the closed loop at the control rate instead (emasim.discrete_loop).
     input : the closed loop's input: "reference" (the position or speed reference) or
@@ -142,15 +152,20 @@ def linearize(
     InputError : a controller without a linear form, an option out of its range, or a plant
     not continuous at the operating point.
     """
-    _refuse(scenario, gaps, loop, at_s)
-    _refuse_ports(scenario, loop, discrete, input, output)
+    named = not isinstance(scenario, Scenario)
+    scenario = as_scenario(scenario, label, list(controllers), list(settings), "linearize")
+    if named and scenario.compare:
+        sets = ", ".join(entry.label for entry in scenario.compare)
+        raise InputError(f"linearize: {scenario.name} compares {sets}: choose one with label=")
+    _refuse(scenario, gaps, kind, at_s)
+    _refuse_ports(scenario, kind, discrete, input, output)
     if broken_at not in (None, "speed", "position") or (
         broken_at == "position" and scenario.controllers.position is None
     ):
         cuts = "speed or position" if scenario.controllers.position else "speed (no position loop)"
         raise InputError(f"linearize: broken_at must be {cuts}, got {broken_at!r}")
     if discrete:
-        _refuse_discrete(scenario, loop)
+        _refuse_discrete(scenario, kind)
     setup = scenario.setup()
     p = small_signal_plant(setup.plant, gaps, friction)
     position = scenario.controllers.position is not None
@@ -165,7 +180,7 @@ def linearize(
     if discrete:
         return tick_map(scenario, setup, p, x0, at_s)
     plant = plant_model(setup, p, x0, u0, t0, position)
-    if loop == "plant":
+    if kind == "plant":
         return plant
     facts, ts = plant_facts(scenario.plant), scenario.solver.sample_period_s
     c = scenario.controllers
@@ -177,10 +192,10 @@ def linearize(
         pade_delay(delay_s, "d"),
         pade_delay(delay_s, "q"),
     ]
-    broken = broken_at or ("position" if position else "speed")  # the feedback loop="open" cuts
+    broken = broken_at or ("position" if position else "speed")  # the feedback kind="open" cuts
     cut = {"speed": "motor_speed_rad_s", "position": "measured_position_m"}[broken]
     fed = {
-        name: f"{name}_fed_back" if loop == "open" and name == cut else name for name in READINGS
+        name: f"{name}_fed_back" if kind == "open" and name == cut else name for name in READINGS
     }
     blocks.append(
         pid_law(
@@ -203,7 +218,7 @@ def linearize(
         reference = "speed_ref_rad_s"
     output = output or READINGS[len(plant.output_labels) - 1]
     ignore_inputs = ["speed_ref_accel"]  # the engine gives the speed loop no acceleration
-    if loop == "open":
+    if kind == "open":
         ignore_inputs += references + ["rod_force_N"]
         references, output = [fed[cut]], cut
     elif input == "rod_force_N":  # the references held
@@ -218,7 +233,7 @@ def linearize(
         ignore_inputs=ignore_inputs,
         ignore_outputs=["iq_ref_rate"],  # nor the current loop a rate
     )
-    if loop == "open":  # negative feedback: the closed loop is L / (1 + L)
+    if kind == "open":  # negative feedback: the closed loop is L / (1 + L)
         return control.ss(
             closed.A,
             closed.B,
@@ -247,12 +262,12 @@ def linearize(
     )
 
 
-def _refuse(scenario: Scenario, gaps: str, loop: str, at_s: float | None) -> None:
+def _refuse(scenario: Scenario, gaps: str, kind: str, at_s: float | None) -> None:
     """InputError, one line, for an option out of range or a controller without a linear form."""
     if gaps not in GAPS:
         raise InputError(f"linearize: gaps must be one of {', '.join(GAPS)}, got {gaps!r}")
-    if loop not in LOOPS:
-        raise InputError(f"linearize: loop must be one of {', '.join(LOOPS)}, got {loop!r}")
+    if kind not in KINDS:
+        raise InputError(f"linearize: kind must be one of {', '.join(KINDS)}, got {kind!r}")
     if at_s is not None and not 0.0 <= at_s <= scenario.duration_s:
         raise InputError(
             f"linearize: at_s must be within the run, 0 to {scenario.duration_s:g} s, got {at_s}"
@@ -276,7 +291,7 @@ def _refuse(scenario: Scenario, gaps: str, loop: str, at_s: float | None) -> Non
         )
 
 
-def _refuse_ports(scenario, loop: str, discrete: bool, input: str, output: str | None) -> None:
+def _refuse_ports(scenario, kind: str, discrete: bool, input: str, output: str | None) -> None:
     """InputError for an input or output the model asked for cannot have: they choose the
     continuous closed loop's ports (the plant has all of them, the open loop its cut)."""
     if input not in PORT_INPUTS:
@@ -285,19 +300,19 @@ def _refuse_ports(scenario, loop: str, discrete: bool, input: str, output: str |
     if output is not None and output not in outputs:
         raise InputError(f"linearize: output must be one of {', '.join(outputs)}, got {output!r}")
     chosen = input != "reference" or output is not None
-    if chosen and (loop != "closed" or discrete):
-        what = "discrete=True" if discrete else f"loop={loop!r}"
+    if chosen and (kind != "closed" or discrete):
+        what = "discrete=True" if discrete else f"kind={kind!r}"
         raise InputError(
             f"linearize: input and output choose the continuous closed loop's ports; "
             f"{what} has its own (leave them out)"
         )
 
 
-def _refuse_discrete(scenario: Scenario, loop: str) -> None:
+def _refuse_discrete(scenario: Scenario, kind: str) -> None:
     """InputError for what the tick's Jacobian does not give: another loop than the closed
     one, and a feed-forward, which reads the reference's rates (not an input of the map)."""
-    if loop != "closed":
-        raise InputError(f"linearize: discrete=True gives the closed loop only, got loop={loop!r}")
+    if kind != "closed":
+        raise InputError(f"linearize: discrete=True gives the closed loop only, got kind={kind!r}")
     facts, ts = plant_facts(scenario.plant), scenario.solver.sample_period_s
     c = scenario.controllers
     laws = [("speed", c.speed)] + ([("position", c.position)] if c.position else [])

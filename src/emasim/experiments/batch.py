@@ -292,15 +292,9 @@ def run(
     file's path, read with ``label``, ``controllers`` and ``settings`` as ``emasim run`` reads
     ``--label``, ``--controller`` and ``--set`` (:func:`emasim.scenarios.loader.load_scenario`:
     ``label`` picks one set). Both results have ``metrics``, ``plot()`` and ``save()``."""
-    if isinstance(scenario, str | Path):
-        from ..scenarios.loader import load_scenario
+    from ..scenarios.loader import as_scenario
 
-        scenario = load_scenario(str(scenario), list(settings), list(controllers), label)
-    elif label is not None or controllers or settings:
-        raise InputError(
-            "emasim.run: label, controllers and settings apply to a scenario's name or path; "
-            "give load_scenario(...) them for a Scenario"
-        )
+    scenario = as_scenario(scenario, label, controllers, settings)
     if scenario.compare:
         return run_comparison(scenario, progress, trust_fmu, client)
     return run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)

@@ -195,6 +195,27 @@ def load_scenario(
     return validate_scenario(raw, source)
 
 
+def as_scenario(
+    scenario: "Scenario | str | Path",
+    label: str | None = None,
+    controllers: list[str] = (),
+    settings: list[str] = (),
+    caller: str = "emasim.run",
+) -> Scenario:
+    """``scenario`` itself, or the shipped scenario of that name or the TOML file at that path
+    read with ``label``, ``controllers`` and ``settings`` as the command line reads
+    ``--label``, ``--controller`` and ``--set`` (:func:`load_scenario`). InputError, naming
+    ``caller``, for those given with a Scenario: it is read already."""
+    if isinstance(scenario, str | Path):
+        return load_scenario(str(scenario), list(settings), list(controllers), label)
+    if label is not None or controllers or settings:
+        raise InputError(
+            f"{caller}: label, controllers and settings apply to a scenario's name or path; "
+            "give load_scenario(...) them for a Scenario"
+        )
+    return scenario
+
+
 def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> None:
     """Apply ``label`` and ``controllers`` to a raw scenario table (see :func:`load_scenario`)."""
     if label is None and not controllers:
