@@ -1,11 +1,14 @@
 """The examples of the README and of the docs pages its details live on run as written; the
-links stay in the project."""
+README's statement of its two commands' times is the stored measurement; its links stay in the
+project."""
 
+import json
 import re
 import shlex
 import tomllib
 from pathlib import Path
 
+from helpers import module_at
 from typer.main import get_command
 from typer.testing import CliRunner
 
@@ -21,6 +24,8 @@ PAGES = [ROOT / "README.md", *sorted(DOCS.glob("*.md"))]
 # datasheet and python-control bridge to the acceptance page.
 RUNNABLE = [ROOT / "README.md", DOCS / "guide.md", DOCS / "acceptance.md"]
 TEXT = "".join(page.read_text() for page in PAGES)
+
+commands = module_at("benchmarks/readme_commands.py")
 
 
 def blocks(language: str, text: str = TEXT) -> list[str]:
@@ -152,6 +157,18 @@ def test_every_python_block_of_the_docs_compiles():
     for page in sorted(DOCS.glob("*.md")):
         for code in blocks("python", page.read_text()):
             compile(code, page.name, "exec")
+
+
+def test_the_readme_states_the_two_commands_measured_times():
+    """The README's block of the two commands' times is the stored measurement rendered (a
+    command that failed said so), and the stored measurement timed the README's commands as
+    printed. Measure with
+    ``python3 benchmarks/readme_commands.py --write`` (minutes: it runs both in a fresh
+    clone); this test times nothing."""
+    stored = json.loads(commands.STORE.read_text())
+    assert commands.block_of(README) == commands.render(stored)
+    printed = commands.commands(README)
+    assert [stored["commands"][name]["command"] for name in commands.NAMES] == printed
 
 
 def slug(heading: str) -> str:
