@@ -1,6 +1,8 @@
 """The command line: a run folder with everything needed to repeat it, and one-line errors."""
 
 import json
+import subprocess
+import sys
 import tomllib
 
 import numpy as np
@@ -239,3 +241,34 @@ def test_the_source_digest_names_the_code_for_any_install(tmp_path):
     assert source_hash(copy) == meta["emasim_source_sha256"]
     (copy / "version.py").write_text((copy / "version.py").read_text() + "\n")
     assert source_hash(copy) != meta["emasim_source_sha256"]
+
+
+BROKEN_METRICS = """
+import sys
+from emasim.cli import app
+from emasim.experiments import runs
+
+def broken(result):
+    raise ValueError("a metric broke")
+
+runs.run_metrics = broken
+sys.argv = ["emasim", "run", "speed-step", "--set", "duration_s=0.002", "--no-plot",
+            "--out", sys.argv[1]]
+app()
+"""
+
+
+def test_an_unexpected_failure_in_a_run_is_one_line(tmp_path):
+    """A failure inside a comparison's run (on a Dask worker thread) ends in one line naming
+    it, exit code 1: no traceback, Dask's "Compute Failed" report included. In a process of
+    its own, as a user runs it (pytest's capture would hide what Dask's logger prints)."""
+    done = subprocess.run(
+        [sys.executable, "-c", BROKEN_METRICS, str(tmp_path / "r")],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    printed = done.stdout + done.stderr
+    assert done.returncode == 1, printed
+    assert "internal error: ValueError: a metric broke" in printed
+    assert "Traceback" not in printed and "Compute Failed" not in printed

@@ -475,8 +475,8 @@ FILES = [
     ("reference-missing", HEAD + LUMPED + PI, "reference"),
     (
         "reference-unknown-term",
-        HEAD + LUMPED + PI + '[reference]\nspeed_rpm = [{ type = "chirp", final = 1.0 }]\n',
-        "chirp",
+        HEAD + LUMPED + PI + '[reference]\nspeed_rpm = [{ type = "square", final = 1.0 }]\n',
+        "square",
     ),
     (
         "cascade-is-a-list",

@@ -285,6 +285,12 @@ def plot_study(table, metrics: list[str], labels: list[str], along: str | None =
     ``along`` when given and numeric (the median over its runs at each value, with the 5-95 %
     band), else as each controller set's distribution (box: quartiles, whiskers 5-95 %)."""
     varying = [m for m in metrics if table[m].nunique(dropna=True) > 1] or metrics[:1]
+    if not varying:  # every metric undefined (runs too short for them, or all diverged)
+        fig = Figure(figsize=(5, 2), layout="constrained")
+        ax = fig.subplots()
+        ax.set_axis_off()
+        ax.text(0.5, 0.5, "no metric is defined over these runs", ha="center", va="center")
+        return fig
     x_numeric = along is not None and table[along].dtype.kind in "fiu"
     rows = -(-len(varying) // STUDY_COLUMNS)
     columns = min(len(varying), STUDY_COLUMNS)

@@ -64,6 +64,9 @@ def dask_client(
     from dask.distributed import Client, LocalCluster
 
     logging.getLogger("distributed").setLevel(logging.ERROR)
+    # a run that fails reaches the caller as its exception (the command line's one line):
+    # the worker's own report of it, "Compute Failed" with the traceback, is not printed
+    logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
     if scheduler is not None:
         check_scheduler(scheduler)
         try:

@@ -37,6 +37,7 @@ PLANT_SECTIONS = tuple(
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
 MAX_RECORDED_ROWS = 20_000_000  # rows of the trace (about 4 GB at 25 columns)
+MIN_RECORDED_ROWS = 4  # the metrics' steady window, the run's second half, holds 2 rows
 
 
 Pair = Annotated[list[float], Field(min_length=2, max_length=2)]  # a TOML array of two numbers
@@ -398,12 +399,14 @@ class Scenario(Strict):
                 )
         if self.duration_s < self.solver.sample_period_s:
             raise ValueError("duration_s must be at least one solver.sample_period_s")
-        if self.solver.record_period_s > self.duration_s:
-            raise ValueError(
-                f"solver.record_period_s ({self.solver.record_period_s:g} s) must not exceed "
-                f"duration_s ({self.duration_s:g} s)"
-            )
         rows = self.duration_s / self.solver.record_period_s
+        if rows < MIN_RECORDED_ROWS - 1e-9:
+            raise ValueError(
+                f"duration_s ({self.duration_s:g} s) must hold at least {MIN_RECORDED_ROWS} "
+                f"recorded rows of solver.record_period_s ({self.solver.record_period_s:g} s): "
+                f"at least {MIN_RECORDED_ROWS * self.solver.record_period_s:g} s, or a shorter "
+                "record_period_s"
+            )
         if rows > MAX_RECORDED_ROWS:
             raise ValueError(
                 f"duration_s / solver.record_period_s = {rows:.3g} recorded rows; at most "
