@@ -4,11 +4,13 @@ Importing matplotlib and drawing a run's figure take about half a second of a si
 ``emasim run`` of two seconds, and neither depends on the simulation until the very end. So
 the command line forks a *figure process* as soon as the scenario is valid: it imports
 ``emasim.analysis.plots`` (matplotlib) on the second core while the first loads the compiled
-core and simulates. A result folder's writer then hands each figure to it (:meth:`save`: the
-function that draws it, pickled, and the path of its PNG) and goes on writing traces and
-metrics, or simulating;
-before the folder is published, :meth:`wait` collects every figure, and re-raises in the
-first process whatever the drawing raised, so a failed figure fails the write as before.
+core and simulates, at the lowest CPU priority (``os.nice(FIGURE_NICENESS)``): where every
+core simulates (a comparison's sets on two threads), it takes only the cycles they leave, so it
+never slows the simulation it waits for. A result folder's writer then hands each figure to it
+(:meth:`save`: the function that draws it, pickled, and the path of its PNG) and goes on
+writing traces and metrics, or simulating; before the folder is published, :meth:`wait`
+collects every figure, and re-raises in the first process whatever the drawing raised, so a
+failed figure fails the write as before.
 
 The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
 built, so the file is listed in that build's journal like every other. It ends when told
@@ -30,6 +32,7 @@ from pathlib import Path
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 CLOSE_S = 5.0  # how long close() lets the figure process finish before ending it
+FIGURE_NICENESS = 19  # the lowest priority: the figure process yields every core it shares
 
 
 class FigureProcessError(RuntimeError):
@@ -137,9 +140,11 @@ def _die_with(parent: int) -> None:
 
 
 def _serve(jobs, jobs_writer, answers, answers_reader, parent: int) -> None:
-    """The figure process: end with ``parent``, close its ends of the pipes, import the
-    plotting module, then draw each job until the jobs pipe ends (the parent closed it)."""
+    """The figure process: end with ``parent``, lower its priority, close its ends of the
+    pipes, import the plotting module, then draw each job until the jobs pipe ends (the parent
+    closed it)."""
     _die_with(parent)
+    os.nice(FIGURE_NICENESS)
     jobs_writer.close()
     answers_reader.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C is the first process's to handle
