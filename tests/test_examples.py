@@ -13,11 +13,11 @@ by docs/hooks.py when the site is built) and each of its figures, as
 """
 
 import re
+import runpy
 import subprocess
 import sys
 from pathlib import Path
 
-from helpers import module_at
 from PIL import Image
 
 ROOT = Path(__file__).parents[1]
@@ -30,7 +30,8 @@ FIGURES = {  # example -> the figures it draws, the gallery's docs/examples/NAME
     "export_fmu": ("fmu-response.png",),
 }
 
-hooks = module_at("docs/hooks.py")
+example_code = runpy.run_path(str(ROOT / "docs" / "hooks.py"))["example_code"]  # not helpers':
+# it imports the simulator, a second of this file's time
 
 
 def run_example(name: str, folder: Path) -> str:
@@ -93,8 +94,8 @@ def test_the_gallery_shows_each_examples_code_and_figures():
 def test_the_hook_puts_in_the_examples_code(caplog):
     page = "# Gallery\n\n<!-- example: export_fmu.py -->\n\ntext\n"
     code = (EXAMPLES / "export_fmu.py").read_text()
-    assert hooks.example_code(page, "x.md") == f"# Gallery\n\n```python\n{code}```\n\ntext\n"
+    assert example_code(page, "x.md") == f"# Gallery\n\n```python\n{code}```\n\ntext\n"
     assert not caplog.records
     missing = "<!-- example: no_such_example.py -->"
-    assert hooks.example_code(missing, "x.md") == missing
+    assert example_code(missing, "x.md") == missing
     assert "no example no_such_example.py" in caplog.records[-1].getMessage()
