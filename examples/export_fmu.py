@@ -16,7 +16,8 @@ from matplotlib.figure import Figure  # files only: no window, no pyplot
 from emasim.plant.presets import sea805
 from emasim.sim.fmi import export_plant_fmu
 
-path = export_plant_fmu("emasim-plant.fmu", sea805())
+# force: a second run replaces the FMU the first wrote (only an emasim FMU is ever replaced)
+path = export_plant_fmu("emasim-plant.fmu", sea805(), force=True)
 result = simulate_fmu(
     str(path),
     stop_time=0.02,
