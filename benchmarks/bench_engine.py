@@ -59,7 +59,7 @@ import bench_acceptance
 import bench_study
 import numba
 import numpy as np
-from commands import STARTUP, process_seconds, user_environment
+from commands import STARTUP, process_seconds, run_meta, user_environment
 from speed_figures import RESULTS, write_page
 
 from emasim.control.registry import CONTROLLERS
@@ -122,6 +122,35 @@ def real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
         name: real_time_factor(load_scenario(name), runs, duration_s)
         for name in sorted(builtin_scenarios())
     }
+
+
+def cli_real_time_factors(
+    runs: int = 3, duration_s: float | None = None, names: tuple[str, ...] | None = None
+) -> dict:
+    """Each scenario as a user runs it, ``emasim run NAME -c ...`` (the controllers
+    ``real_time_factors`` times, plots included) in a fresh process, against the same scenario
+    simulated in this process: ``runs`` pairs, interleaved, the best of each. The command
+    line's figure is its meta.json's simulation wall time (the compile never counts) per
+    simulated second. name -> {"cli", "in_process", "ratio"}."""
+    out = {}
+    for name in names or sorted(builtin_scenarios()):
+        choices = load_scenario(name).controllers_label().split(", ")
+        args = [name, *(w for c in choices for w in ("-c", c)), "--out", "{out}/run"]
+        if duration_s is not None:
+            args += ["--set", f"duration_s={duration_s}"]
+        setup = load_scenario(name, controllers=choices).setup()
+        if duration_s is not None:
+            setup = setup.with_(duration_s=duration_s)
+        simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
+        cli, here = [], []
+        for _ in range(runs):
+            meta = run_meta(args)
+            cli.append(meta["simulation_wall_s"] / setup.duration_s)
+            start = time.perf_counter()
+            simulate(setup)
+            here.append((time.perf_counter() - start) / setup.duration_s)
+        out[name] = {"cli": min(cli), "in_process": min(here), "ratio": min(cli) / min(here)}
+    return out
 
 
 def scenario_runs(duration_s: float | None = None) -> tuple[dict, dict]:
@@ -269,6 +298,7 @@ def quick_results() -> dict:
     results["scenario_duration_s"], results["scenario_controllers"] = scenario_runs(QUICK_S)
     results["controller_real_time_factor"] = controller_real_time_factors(1, QUICK_S)
     results["reference"] = reference_speedup(QUICK_REFERENCE_S)
+    results["cli_real_time_factor"] = cli_real_time_factors(1, QUICK_S, ("speed-step",))
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
     quick = (bench_study.QUICK_RUNS, bench_study.QUICK_S)
@@ -300,6 +330,7 @@ def full_results() -> dict:
 
 
 SECTIONS = {  # the full run's figures that --update re-measures alone
+    "cli_real_time_factor": cli_real_time_factors,
     "reproduce_s": reproduce_seconds,
     "peak_memory": lambda: memory_figures(MEMORY_S),
     "batch": lambda: batch_scaling(
@@ -356,6 +387,11 @@ def report(results: dict) -> None:
         print(f"{name:16s} RTF {rtf:.4f} s/s  ({1 / rtf:.0f}x faster than real time)")
     for name, rtf in results["controller_real_time_factor"].items():
         print(f"  {name:20s} RTF {rtf:.4f} s/s")
+    for name, pair in results.get("cli_real_time_factor", {}).items():
+        print(
+            f"{name:16s} command line RTF {pair['cli']:.4f} s/s against {pair['in_process']:.4f}"
+            f" in process: {pair['ratio']:.2f}x"
+        )
     for key, seconds in results["startup_s"].items():
         print(f"fresh `emasim {' '.join(STARTUP[key][0])}`, warm cache: {seconds:.2f} s")
     for key, what in (

@@ -10,11 +10,13 @@ so the second and later processes load compiled bytecode instead of compiling em
 sources again (about 60 modules, 0.06 s on this machine).
 """
 
+import json
 import os
 import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
 # key -> (arguments after ``python -m emasim``, exit code); ``{out}`` is a new folder each time
 STARTUP = {
@@ -51,3 +53,16 @@ def process_seconds(args: list[str], expect: int = 0, env: dict | None = None) -
             f"{' '.join(args)}: exit code {proc.returncode}, expected {expect}\n{proc.stderr}"
         )
     return elapsed
+
+
+def run_meta(args: list[str], env: dict | None = None) -> dict:
+    """The meta.json of one fresh ``python -m emasim run ...`` process (ARGS after ``run``,
+    ``{out}`` a new folder), run as :func:`process_seconds` runs it."""
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-m", "emasim", "run", *(a.format(out=out) for a in args)]
+        proc = subprocess.run(
+            cmd, env=env or user_environment(), cwd=out, capture_output=True, text=True
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(f"run {' '.join(args)}: exit code {proc.returncode}\n{proc.stderr}")
+        return json.loads((Path(out) / "run" / "meta.json").read_text())

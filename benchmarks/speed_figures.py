@@ -27,6 +27,10 @@ END = "<!-- speed-figures:end -->"
 MISSING = "not measured"
 
 RTF_HOW = "best of 3 runs in one process, compiled code loaded"
+CLI_HOW = (
+    "best of 3 fresh processes (meta.json's simulation wall time: the compile never counts), "
+    "interleaved with 3 runs in one process"
+)
 STARTUP = (  # key in results["startup_s"], what the fresh process runs
     ("help", "`emasim --help`"),
     ("list", "`emasim list`"),
@@ -91,9 +95,21 @@ def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
     rows = []
     durations = results["scenario_duration_s"]
     controllers = results["scenario_controllers"]
+    through = results.get("cli_real_time_factor", {})
     for name, r in results["real_time_factor"].items():
         what = f"`{name}` ({controllers[name]}), {given(durations[name])} simulated"
         rows.append((what, RTF_HOW, rtf(r)))
+        if name in through:
+            pair = through[name]
+            rows.append(
+                (
+                    f"the same through the command line: `emasim run {name} -c ...`, plots "
+                    "included, against the same runs in one process",
+                    CLI_HOW,
+                    f"RTF {sig(pair['cli'], 3)} against {sig(pair['in_process'], 3)}: "
+                    f"{sig(pair['ratio'], 3)}× the in-process time",
+                )
+            )
     controllers = results["controller_real_time_factor"]
     fastest = min(controllers, key=controllers.get)
     slowest = max(controllers, key=controllers.get)
