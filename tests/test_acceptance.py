@@ -308,13 +308,14 @@ def test_a_chirp_reads_the_stepped_sines_response_on_a_linear_loop():
 
 
 def test_a_loop_without_a_linear_model_says_why():
-    """The bench (the clearance-joint linkage) and a loop closed on the motor encoder get no
-    overlay, and the reason; asking for their linear response is refused in one line, as are
-    names out of range."""
+    """The nominal bench (its linkage's hinges open at rest) and a loop closed on the motor
+    encoder get no overlay, and the reason; asking for their linear response is refused in
+    one line, as are names out of range."""
     battery = ac.Battery(**SHORT)
     bench = dict(load_scenario("bench-step").variants())
     models, why = ac.linear_responses(next(iter(bench.values())), battery)
-    assert models == [] and why.startswith("none: linearize: the clearance-joint linkage")
+    assert models == [] and why.startswith("none: linearize: hinge")
+    assert "of the clearance-joint linkage is open at the operating point" in why
     motor = load_scenario("position-step", settings=["loop.position_feedback='motor'"])
     models, why = ac.linear_responses(dict(motor.variants())["PI"], battery)
     assert models == [] and "motor encoder" in why

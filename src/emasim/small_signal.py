@@ -56,9 +56,29 @@ def loads_at(setup, t: float) -> np.ndarray:
 
 def rates(p: np.ndarray, x: np.ndarray, inputs: np.ndarray) -> np.ndarray:
     """dx/dt of the plant p at x, inputs (vd, vq, motor load, rod load, rudder load)."""
-    dx = np.zeros(A.N_STATE)
-    A.rhs(x, *inputs, p, dx, np.zeros((4, 2)))
-    return dx
+    return rates_and_hinges(p, x, inputs)[0]
+
+
+def rates_and_hinges(p: np.ndarray, x: np.ndarray, inputs: np.ndarray):
+    """(dx/dt, the linkage's hinges: (penetration m, normal force N) a row, hinges 1 to 4)."""
+    dx, hinges = np.zeros(A.N_STATE), np.zeros((4, 2))
+    A.rhs(x, *inputs, p, dx, hinges)
+    return dx, hinges
+
+
+def check_hinges_loaded(setup, p: np.ndarray, x0, u0, t0: float) -> None:
+    """InputError where a hinge of the clearance-joint linkage is open at the operating point:
+    no contact force holds it, so it passes no force to a small signal and the linear loop
+    would have the rudder loose (a free mode, no gain at DC)."""
+    _, hinges = rates_and_hinges(p, x0, np.concatenate([u0, loads_at(setup, t0)]))
+    open_ = [h + 1 for h in range(4) if hinges[h, 1] <= 0.0]
+    if open_:
+        raise InputError(
+            f"linearize: hinge {open_[0]} of the clearance-joint linkage is open at the "
+            "operating point (no load holds it in contact), so it passes no force to a small "
+            "signal; give a standing load (plant.load_motor.preload_Nm, load.rudder_torque_Nm) "
+            "and linearise about the run's state once it has settled (at_s)"
+        )
 
 
 def readings(setup, p: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -167,7 +187,10 @@ def rigid_motion(m: np.ndarray, theta: int) -> np.ndarray:
     r[theta] = 1.0
     r[rest] = np.linalg.lstsq(m[:, rest], -m[:, theta], rcond=None)[0]
     if np.linalg.norm(m @ r) > 1e-9 * np.linalg.norm(m[:, theta]) + 1e-300:
-        raise InputError("linearize: the plant has no rigid motion with the rotor to run at speed")
+        raise InputError(
+            "linearize: the plant has no rigid motion with the rotor to run at speed (a load "
+            "holds it: the load motor, the linkage); linearise about the run's state (at_s)"
+        )
     return r
 
 

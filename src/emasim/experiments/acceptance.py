@@ -21,7 +21,8 @@ standing loads, a load motor's preload, stay) and its own command and load:
 * **The linear model beside them**: where ``emasim.linearize`` models the loop (plays
   closed, friction dropped, at standstill), its responses from the command and from the rod
   force at the same frequencies, overlaid on the measured ones; elsewhere the reason it has
-  none (the bench's linkage and load motor are not linearised yet).
+  none (a law without a linear form; the nominal bench, whose linkage hinges hang open at
+  rest with no standing load).
 * **Threshold and hysteresis**: a slow triangle of the command after a hold of ``settle_s``
   at mid stroke. The threshold is the command
   travel after each reversal before the output has moved ``detection_mm`` the new way, less
