@@ -5,7 +5,9 @@
 The whole battery (the default Battery) for both controller sets of bench-step, as
 ``emasim acceptance bench-step`` runs it: threads in this process, the compiled core loaded
 beforehand (one short run), REPEATS times; the median wall time. The target (issue 14) is
-under two minutes on the 2-core development machine.
+under two minutes on the 2-core development machine. Interleaved with each, the same battery
+with ``excitation="chirp"`` (``emasim acceptance --excitation chirp``): its figures under
+``chirp``.
 
 ``bench_engine.py`` calls :func:`battery_figures` for its results; ``--write`` stores this
 figure alone in benchmarks/results.json (with the day it was measured) and rewrites
@@ -13,6 +15,7 @@ docs/speed.md's table. ``--quick`` (what CI runs): one set, QUICK_FREQUENCIES fr
 """
 
 import argparse
+import dataclasses
 import datetime
 import json
 import statistics
@@ -37,18 +40,26 @@ def battery_figures(quick: bool = False) -> dict:
         labels, repeats = [scenario.compare[0].label], 1
     else:
         battery, labels, repeats = Battery(), None, REPEATS
-    walls = []
+    batteries = {"stepped": battery, "chirp": dataclasses.replace(battery, excitation="chirp")}
+    walls, results = {name: [] for name in batteries}, {}
     for _ in range(repeats):
-        start = time.perf_counter()
-        result = run_acceptance(scenario, labels=labels, battery=battery)
-        walls.append(time.perf_counter() - start)
+        for name, chosen in batteries.items():
+            start = time.perf_counter()
+            results[name] = run_acceptance(scenario, labels=labels, battery=chosen)
+            walls[name].append(time.perf_counter() - start)
+    result, chirp = results["stepped"], results["chirp"]
     return {
         "scenario": SCENARIO,
         "labels": list(result.figures),
         "runs": result.meta["runs"],
         "simulated_s": result.meta["simulated_s"],
         "repeats": repeats,
-        "wall_s": statistics.median(walls),
+        "wall_s": statistics.median(walls["stepped"]),
+        "chirp": {
+            "runs": chirp.meta["runs"],
+            "simulated_s": chirp.meta["simulated_s"],
+            "wall_s": statistics.median(walls["chirp"]),
+        },
         "date": datetime.date.today().isoformat(),
     }
 
@@ -59,6 +70,12 @@ def report(figures: dict) -> None:
         f"{figures['runs']} runs, {figures['simulated_s']:.0f} s simulated, "
         f"median wall {figures['wall_s']:.1f} s of {figures['repeats']}"
     )
+    chirp = figures.get("chirp")
+    if chirp is not None:
+        print(
+            f"  with --excitation chirp: {chirp['runs']} runs, {chirp['simulated_s']:.0f} s "
+            f"simulated, median wall {chirp['wall_s']:.1f} s"
+        )
 
 
 def main() -> None:

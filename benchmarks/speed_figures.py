@@ -197,6 +197,16 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
                 seconds(battery["wall_s"]),
             )
         )
+        chirp = battery.get("chirp")
+        if chirp is not None:
+            rows.append(
+                (
+                    f"the same with `--excitation chirp` ({chirp['runs']} runs, "
+                    f"{chirp['simulated_s']:.0f} s simulated)",
+                    "median of the same number, interleaved with the runs above",
+                    seconds(chirp["wall_s"]),
+                )
+            )
     mc = results.get("monte_carlo")
     if mc is not None:
         rows.append(

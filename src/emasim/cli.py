@@ -842,7 +842,7 @@ def acceptance(
         typer.Option(
             "--excitation",
             help="the frequency responses' input: 'stepped' sines, or 'chirp', one logarithmic "
-            "sweep per amplitude (faster; the best linear approximation)",
+            "sweep per amplitude (the best linear approximation of each)",
         ),
     ] = "stepped",
     force: ForceOption = False,

@@ -12,8 +12,9 @@ standing loads, a load motor's preload, stay) and its own command and load:
   ``excitation="chirp"`` one logarithmic sweep per amplitude replaces the stepped sines (a
   band an eighth of a decade beyond the frequencies read, ``chirp_s`` long, after
   ``settle_s`` at rest and followed by ``settle_s`` more), read by the Fourier transforms of
-  the whole record (:func:`emasim.analysis.frequency.sweep_response`): faster, and for a
-  nonlinear loop the best linear approximation instead of each amplitude's describing
+  the whole record (:func:`emasim.analysis.frequency.sweep_response`): fewer simulated
+  seconds (the wall time against the stepped sines': benchmarks/bench_acceptance.py), and for
+  a nonlinear loop the best linear approximation instead of each amplitude's describing
   function. Every response is read on several outputs (OUTPUTS: the controlled position, the
   motor speed, the q current) and kept (:class:`Response`): the datasheet saves them as
   frequency_response.csv, and :meth:`Acceptance.frequency_response` gives any of them as a
