@@ -175,7 +175,8 @@ def test_the_datasheet_holds_every_figure_with_its_definition(datasheet):
         assert (out / name).stat().st_size > 0
     html = (out / "report.html").read_text()
     assert "threshold_mm" in html and '<img src="bode.png"' in html
-    assert "bandwidth small" in output and f"linear model of PI: {ac.LINEAR_MODEL}" in output
+    folded = " ".join(output.split())  # the console wraps at 80 columns
+    assert "bandwidth small" in folded and f"linear model of PI: {ac.LINEAR_MODEL}" in folded
     assert foreign_files(out) == []  # every file the datasheet wrote is in its manifest
 
 
@@ -332,3 +333,15 @@ def test_a_loop_without_a_linear_model_says_why():
             sheet.frequency_response("PI", **kwargs)
     with pytest.raises(InputError, match="excitation must be one of stepped, chirp"):
         ac.Battery(excitation="noise")
+
+
+def test_the_bench_under_a_standing_load_gets_its_linear_model():
+    """The overlay's operating point is the battery's rest state (mid stroke after settle_s,
+    the standing loads on): under a load motor's preload the bench's hinges are loaded there,
+    so it has a linear model, every output from both inputs, unit gain at low frequency."""
+    loaded = load_scenario("bench-step", settings=["plant.load_motor.preload_Nm=40"])
+    models, why = ac.linear_responses(dict(loaded.variants())["PID"], ac.Battery(**SHORT))
+    assert why == ac.LINEAR_MODEL
+    assert {(r.input, r.output) for r in models} == {(i, o) for i in ac.INPUTS for o in ac.OUTPUTS}
+    (command,) = [r for r in models if (r.input, r.output) == ("position_command", "position")]
+    assert abs(command.h[0]) == pytest.approx(1.0, abs=0.02)  # 1 Hz, well inside the band

@@ -20,10 +20,11 @@ standing loads, a load motor's preload, stay) and its own command and load:
   frequency_response.csv, and :meth:`Acceptance.frequency_response` gives any of them as a
   ``control.FrequencyResponseData``.
 * **The linear model beside them**: where ``emasim.linearize`` models the loop (plays
-  closed, friction dropped, at standstill), its responses from the command and from the rod
-  force at the same frequencies, overlaid on the measured ones; elsewhere the reason it has
-  none (a law without a linear form; the nominal bench, whose linkage hinges hang open at
-  rest with no standing load).
+  closed, friction dropped, about the battery's rest state: mid stroke after ``settle_s``,
+  the standing loads on), its responses from the command and from the rod force at the same
+  frequencies, overlaid on the measured ones; elsewhere the reason it has none (a law without
+  a linear form; the nominal bench, whose linkage hinges hang open at rest with no standing
+  load).
 * **Threshold and hysteresis**: a slow triangle of the command after a hold of ``settle_s``
   at mid stroke. The threshold is the command
   travel after each reversal before the output has moved ``detection_mm`` the new way, less
@@ -744,16 +745,22 @@ def run_acceptance(
     return Acceptance(scenario, battery, figures, curves, meta)
 
 
-LINEAR_MODEL = "linearize: plays closed, friction dropped, at standstill"
+LINEAR_MODEL = (
+    "linearize: plays closed, friction dropped, about the battery's rest state (mid stroke, "
+    "standing loads on, after settle_s)"
+)
 
 
 def linear_responses(variant: Scenario, battery: Battery) -> tuple[list[Response], str]:
     """The linearised loop's responses (emasim.linearize, LINEAR_MODEL) of every output from
     the command and from the rod force at the battery's frequencies, and a line saying what
     they are; none, and the reason, where the loop has no linear model or the model's position
-    is not the battery's (a loop closed on the motor encoder: the battery reads the rod)."""
+    is not the battery's (a loop closed on the motor encoder: the battery reads the rod). The
+    operating point is the state every run of the battery starts its excitation from: at rest
+    at mid stroke after settle_s, the standing loads (a load motor's preload) on."""
     if variant.loop.position_feedback == "motor":
         return [], "none: the loop closes on the motor encoder, the battery reads the rod"
+    rest = battery_scenario(variant, battery.settle_s, [{"type": "constant", "value": 0.0}])
     excitations = (
         ("reference", "position_command", battery.frequencies_Hz),
         ("rod_force_N", "rod_force_N", battery.stiffness_frequencies_Hz),
@@ -763,7 +770,7 @@ def linear_responses(variant: Scenario, battery: Battery) -> tuple[list[Response
         for port, name, frequencies in excitations:
             f = np.array(frequencies)
             for output, (_, reading) in OUTPUTS.items():
-                model = linearize(variant, input=port, output=reading)
+                model = linearize(rest, at_s=battery.settle_s, input=port, output=reading)
                 h = control.frequency_response(model, 2 * np.pi * f).complex.ravel()
                 out.append(Response(name, "model", None, output, f, h, "linear model"))
     except InputError as err:
