@@ -4,10 +4,9 @@ loopback address, and ``emasim study --scheduler`` run on them. Its metrics.parq
 local run's row by row: the runs are deterministic, wherever they execute. Every process is
 bounded in time and ended when the test ends."""
 
-import json
+import socket
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ from emasim.experiments.study import read_table
 
 STUDY = ["study", "speed-step", "--label", "PI", "--set", "duration_s=0.02"]
 STUDY += ["--vary", "plant.backlash.width_mm=0.05,0.1,0.2"]
-START_S = 90.0  # the scheduler's file and both workers, at most
+START_S = 90.0  # Dask's own bounds on connecting and on waiting for the workers
 
 
 def dask(*args: str, log: Path) -> subprocess.Popen:
@@ -28,35 +27,30 @@ def dask(*args: str, log: Path) -> subprocess.Popen:
         )
 
 
-def wait_for_workers(scheduler_file: Path, n: int) -> str:
-    """The scheduler's address once ``n`` workers have joined it (START_S at most)."""
-    from distributed import Client
-
-    deadline = time.monotonic() + START_S
-    while not scheduler_file.exists():
-        assert time.monotonic() < deadline, "the scheduler wrote no scheduler file"
-        time.sleep(0.2)
-    address = json.loads(scheduler_file.read_text())["address"]
-    with Client(address, timeout=START_S) as client:
-        client.wait_for_workers(n, timeout=max(1.0, deadline - time.monotonic()))
-    return address
+def free_port() -> int:
+    """A loopback port nothing listens on now (the scheduler takes it next)."""
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
 
 
 @pytest.fixture
 def cluster(tmp_path):
-    """A scheduler on 127.0.0.1 and two single-threaded worker processes; its address."""
-    scheduler_file = tmp_path / "scheduler.json"
-    common = ["--no-dashboard"]
+    """A scheduler on 127.0.0.1 and two single-threaded worker processes; its address, once
+    both workers have joined (Dask's connect and wait_for_workers, each bounded by START_S,
+    raise rather than hang)."""
+    from distributed import Client
+
+    address = f"tcp://127.0.0.1:{free_port()}"
+    port = address.rsplit(":", 1)[1]
     processes = [
         dask(
             "scheduler",
             "--host",
             "127.0.0.1",
             "--port",
-            "0",
-            "--scheduler-file",
-            str(scheduler_file),
-            *common,
+            port,
+            "--no-dashboard",
             log=tmp_path / "scheduler.log",
         )
     ]
@@ -65,19 +59,20 @@ def cluster(tmp_path):
             processes.append(
                 dask(
                     "worker",
-                    "--scheduler-file",
-                    str(scheduler_file),
+                    address,
                     "--host",
                     "127.0.0.1",
                     "--nworkers",
                     "1",
                     "--nthreads",
                     "1",
-                    *common,
+                    "--no-dashboard",
                     log=tmp_path / f"worker-{k}.log",
                 )
             )
-        yield wait_for_workers(scheduler_file, 2)
+        with Client(address, timeout=START_S) as client:
+            client.wait_for_workers(2, timeout=START_S)
+        yield address
     finally:
         for process in reversed(processes):
             process.terminate()
