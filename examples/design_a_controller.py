@@ -53,7 +53,8 @@ print(
 # the Bode plot: the linear model's line, the simulated drive's measured points on it
 f = np.geomspace(0.2, 40.0, 300)
 linear = linearize(design(chosen))(2j * np.pi * f)  # measured position / position command
-measured_f, measured = sheet.curves[label]["small"]
+small = sheet.frequency_response(label)  # position over command, small signal (FRD)
+measured_f, measured = small.omega / (2 * np.pi), small.complex.ravel()
 fig = Figure(figsize=(7, 5.5), layout="constrained")
 gain, phase = fig.subplots(2, 1, sharex=True)
 gain.semilogx(f, 20 * np.log10(np.abs(linear)), label="linear model (no friction, no backlash)")

@@ -130,7 +130,7 @@ def test_backlash_in_the_loop_matches_the_describing_function(
     scenario = play_loop(gap_mm)
     battery = ac.Battery()
     job = ac.sine_job(scenario, ac.Drive.of(scenario), battery, frequency_Hz, amplitude_mm * 1e-3)
-    simulated = ac.measure_sine(*job[1:])["response"]
+    simulated = ac.measure_sine(*job[1:])["responses"]["position"]
     w = 2 * math.pi * frequency_Hz
     t0 = complex(control.frequency_response(linearize(play_loop(0.0)), [w]).complex.squeeze())
     predicted = describing_function_prediction(t0, amplitude_mm * 1e-3, gap_mm * 1e-3)

@@ -90,11 +90,12 @@ def frequency_response_csv(curves: dict) -> str:
     return buffer.getvalue()
 
 
-def linear_curve(c: dict, input: str) -> tuple | None:
-    """(f, H) of the set's linear model of the position from ``input``, or None."""
+def position_curve(c: dict, input: str, excitation: str) -> tuple | None:
+    """(f, H, peak of the excitation) of a set's response of the position to ``input`` at
+    ``excitation`` (``Response.excitation``: "model" for the linear model's), or None."""
     for r in c["responses"]:
-        if (r.source, r.input, r.output) == ("linear model", input, "position"):
-            return r.frequencies_Hz, r.h
+        if (r.input, r.excitation, r.output) == (input, excitation, "position"):
+            return r.frequencies_Hz, r.h, r.amplitude
     return None
 
 
@@ -104,14 +105,13 @@ def plot_bode(curves: dict) -> Figure:
     for k, (label, c) in enumerate(curves.items()):
         color = f"C{k}"
         for size, style in (("small", "-o"), ("large", "--s")):
-            f, h = c[size]
-            amplitude = c["amplitudes_mm"][size]
-            name = f"{label}, {size} (±{amplitude:.3g} mm)"
+            f, h, amplitude = position_curve(c, "position_command", size)
+            name = f"{label}, {size} (±{1e3 * amplitude:.3g} mm)"
             gain.semilogx(f, fr.gain_dB(h), style, color=color, ms=3, label=name)
             phase.semilogx(f, fr.phase_deg(h), style, color=color, ms=3)
-        model = linear_curve(c, "position_command")
+        model = position_curve(c, "position_command", "model")
         if model is not None:
-            f, h = model
+            f, h, _ = model
             name = f"{label}, linear model"
             gain.semilogx(f, fr.gain_dB(h), ":", color=color, lw=1.5, label=name)
             phase.semilogx(f, fr.phase_deg(h), ":", color=color, lw=1.5)
@@ -127,10 +127,11 @@ def plot_bode(curves: dict) -> Figure:
 def plot_stiffness(curves: dict) -> Figure:
     fig, ax = _figure("frequency (Hz)", "|F/x| (N/mm)")
     for k, (label, c) in enumerate(curves.items()):
-        ax.loglog(*c["stiffness"], "-o", color=f"C{k}", ms=3, label=label)
-        model = linear_curve(c, "rod_force_N")
+        f, h, _ = position_curve(c, "rod_force_N", "force")
+        ax.loglog(f, 1e-3 / np.abs(h), "-o", color=f"C{k}", ms=3, label=label)
+        model = position_curve(c, "rod_force_N", "model")
         if model is not None:
-            f, h = model
+            f, h, _ = model
             name = f"{label}, linear model"
             ax.loglog(f, 1e-3 / np.abs(h), ":", color=f"C{k}", lw=1.5, label=name)
     return _with_legend(fig, ax)

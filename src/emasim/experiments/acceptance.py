@@ -265,7 +265,6 @@ def measure_sine(scenario, drive, battery) -> dict:
     span = t[keep][-1] - t[keep][0]
     return {
         "frequency_Hz": f,
-        "response": responses["position"],
         "responses": responses,
         "output_amplitude_m": abs(fr.phasor(t[keep], outputs["position"][keep], f)),
         "rms_current_A": float(np.sqrt(np.mean(i_d**2 + i_q**2))),
@@ -518,8 +517,9 @@ DEFINITIONS = {
 @dataclass
 class Acceptance:
     """The battery's outcome: ``figures`` label -> the datasheet's figures (DEFINITIONS, in
-    the units their names carry), ``curves`` label -> the measured curves (Bode points,
-    dynamic stiffness, the hysteresis loop), and what ran."""
+    the units their names carry), ``curves`` label -> its curves (``responses``: every
+    frequency response, :class:`Response`, measured and the linear model's; ``loop``: the
+    hysteresis loop), and what ran."""
 
     scenario: Scenario
     battery: Battery
@@ -577,9 +577,7 @@ class Acceptance:
         if linear and not any(r.source == "linear model" for r in responses):
             raise InputError(f"{label} has no linear model: {self.meta['linear_model'][label]}")
         excitation = "model" if linear else amplitude or ("small" if sizes else "force")
-        (chosen,) = [
-            r for r in responses if (r.input, r.excitation, r.output) == (input, excitation, output)
-        ]
+        chosen = response_of(self.curves[label], input, excitation, output)
         return control.frd(
             chosen.h,
             2 * np.pi * chosen.frequencies_Hz,
@@ -778,6 +776,17 @@ def linear_responses(variant: Scenario, battery: Battery) -> tuple[list[Response
     return out, LINEAR_MODEL
 
 
+def response_of(curves: dict, input: str, excitation: str, output="position") -> Response:
+    """One set's response (its curves: ``summarize``) to ``input`` at ``excitation`` ("small",
+    "large", "force", or "model": the linear model's), on ``output``."""
+    (found,) = [
+        r
+        for r in curves["responses"]
+        if (r.input, r.excitation, r.output) == (input, excitation, output)
+    ]
+    return found
+
+
 def spread_sweeps(measured: dict) -> dict:
     """The chirps' responses, each frequency under the tag of its stepped sine (size, f),
     so that the figures read them alike."""
@@ -786,10 +795,7 @@ def spread_sweeps(measured: dict) -> dict:
         if tag[0] == "chirp":
             for k, f in enumerate(m["frequencies_Hz"]):
                 responses = {name: h[k] for name, h in m["responses"].items()}
-                out[(tag[1], float(f))] = {
-                    "response": responses["position"],
-                    "responses": responses,
-                }
+                out[(tag[1], float(f))] = {"responses": responses}
     return out
 
 
@@ -800,10 +806,6 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
     figures = {
         "small_amplitude_mm": battery.small_amplitude * drive.stroke_m / MM,
         "large_amplitude_mm": battery.large_amplitude * drive.stroke_m / MM,
-    }
-    curves["amplitudes_mm"] = {
-        "small": figures["small_amplitude_mm"],
-        "large": figures["large_amplitude_mm"],
     }
     command, force = drive.stroke_m, drive.stall_force_N
     excitations = (  # (the runs' tag, the response's input and excitation, f, peak)
@@ -821,10 +823,8 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
                 Response(name, excitation, amplitude, output, f, h, battery.excitation)
             )
     for size in ("small", "large"):
-        f = np.array(battery.frequencies_Hz)
-        h = np.array([measured[(size, x)]["response"] for x in battery.frequencies_Hz])
-        curves[size] = (f, h)
-        bode = fr.bode_figures(f, h)
+        response = response_of(curves, "position_command", size)
+        bode = fr.bode_figures(response.frequencies_Hz, response.h)
         figures[f"bandwidth_{size}_Hz"] = bode["bandwidth_Hz"]
         figures[f"phase_45_{size}_Hz"] = bode["phase_45_Hz"]
         figures[f"phase_90_{size}_Hz"] = bode["phase_90_Hz"]
@@ -838,9 +838,8 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
     figures["static_stiffness_N_per_mm"] = step["static_stiffness_N_per_m"] * MM
     figures["static_stiffness_lower_bound"] = step["static_stiffness_lower_bound"]
     figures["load_step_stiffness_N_per_mm"] = step["peak_stiffness_N_per_m"] * MM
-    f = np.array(battery.stiffness_frequencies_Hz)
-    stiffness = np.array([1.0 / abs(measured[("stiffness", x)]["response"]) for x in f]) * MM
-    curves["stiffness"] = (f, stiffness)
+    compliance = response_of(curves, "rod_force_N", "force")
+    f, stiffness = compliance.frequencies_Hz, MM / np.abs(compliance.h)
     weakest = int(np.argmin(stiffness))
     figures["dynamic_stiffness_min_N_per_mm"] = float(stiffness[weakest])
     figures["dynamic_stiffness_min_Hz"] = float(f[weakest])
