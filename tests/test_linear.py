@@ -65,7 +65,12 @@ def simulated_response(name, controllers, settings, frequency_Hz, offset=0.0) ->
     s = scenario(
         name, controllers, settings + [f"reference.{key}=[{sine}]", f"duration_s={duration}"]
     )
-    result = simulate(s.setup())
+    return last_periods_response(simulate(s.setup()), columns, frequency_Hz, periods, duration)
+
+
+def last_periods_response(result, columns, frequency_Hz, periods, duration) -> complex:
+    """The response of columns[1] over columns[0] over the last ``periods`` periods of a run
+    of ``duration`` s."""
     t = np.asarray(result["t_s"])
     window = t >= duration - periods / frequency_Hz - 1e-9
     u, y = (np.asarray(result[column])[window] for column in columns)
@@ -300,11 +305,9 @@ def simulated_compliance(frequency_Hz, force_N=50.0) -> complex:
         f"duration_s={duration}",
     ]
     run = scenario("position-step", CASE_CONTROLLERS, CASE + settings)
+    columns = ("rod_load_N", "measured_position_m")
     result = simulate(run.setup())
-    t = np.asarray(result["t_s"])
-    window = t >= duration - periods / frequency_Hz - 1e-9
-    u, y = (np.asarray(result[c])[window] for c in ("rod_load_N", "measured_position_m"))
-    return response(t[window], u, y, frequency_Hz)
+    return last_periods_response(result, columns, frequency_Hz, periods, duration)
 
 
 CASE_CONTROLLERS, CASE = POSITION_CASES["pid-elements-rod"]
@@ -393,10 +396,8 @@ def test_a_plant_held_by_a_standing_load_is_the_simulations_loop(case):
         duration = HELD_S + RING_S + periods / f
         sine = f"{{type='sine', amplitude={amplitude}, frequency_Hz={f}, start_s={HELD_S}}}"
         result = simulate(scenario_with(sine, duration).setup())
-        t = np.asarray(result["t_s"])
-        window = t >= duration - periods / f - 1e-9
-        u, y = (np.asarray(result[c])[window] for c in ("position_ref_m", "measured_position_m"))
+        columns = ("position_ref_m", "measured_position_m")
         h_model = np.ravel(control.frequency_response(model, [2 * np.pi * f]).complex)[0]
-        ratio = response(t[window], u, y, f) / h_model
+        ratio = last_periods_response(result, columns, f, periods, duration) / h_model
         rows.append((f, 20 * math.log10(abs(ratio)), math.degrees(np.angle(ratio))))
     assert_within_tolerance(rows)
