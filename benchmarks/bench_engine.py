@@ -33,7 +33,8 @@ count and the Python, numpy and numba versions) and rewrites docs/speed.md's tab
 (``speed_figures.py``); ``--json FILE`` writes the same figures to FILE only. ``--write
 --update NAME`` re-measures one part of the stored figures (SECTIONS: reproduce_s,
 peak_memory, batch, monte_carlo), keeps the rest, and notes the part's date under
-``updated``, which the table's first line names.
+``updated``, which the table's first line names. A full ``--write`` keeps the sections that
+another benchmark stores (KEPT: ``bench_peers.py``'s ``peers``).
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
 and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
@@ -329,6 +330,8 @@ def full_results() -> dict:
     return results
 
 
+KEPT = ("peers",)  # results.json's sections that another benchmark measures (bench_peers.py)
+
 SECTIONS = {  # the full run's figures that --update re-measures alone
     "cli_real_time_factor": cli_real_time_factors,
     "reproduce_s": reproduce_seconds,
@@ -372,6 +375,9 @@ def main() -> None:
         results = updated_results(args.update)
     else:
         results = quick_results() if args.quick else full_results()
+        if args.write:
+            stored = json.loads(RESULTS.read_text())
+            results.update({key: stored[key] for key in KEPT if key in stored})
     report(results)
     text = json.dumps(results, indent=2) + "\n"
     if args.json:

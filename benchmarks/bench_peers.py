@@ -55,6 +55,11 @@ SCRIPTS = {  # peer -> its script in benchmarks/peers/
     "gym-electric-motor": PEERS / "gem_speed_step.py",
     "motulator": PEERS / "motulator_speed_step.py",
 }
+SETUPS = {  # peer -> its controllers, in a few words (the script's docstring says the rest)
+    "gym-electric-motor": "gem's environment driven by emasim's PI laws written out in Python "
+    "(gem_controllers 3.0.3 cannot build a PMSM speed loop)",
+    "motulator": "motulator's current-vector control, its speed PI given emasim's gains",
+}
 QUICK_S = 0.05
 SECTION = "peers"
 
@@ -183,6 +188,7 @@ def summary(measured: dict, peer_python: str | None) -> dict:
         out["peers"][peer] = {
             "version": runs[peer][0]["version"],
             "script": f"benchmarks/peers/{SCRIPTS[peer].name}",
+            "setup": SETUPS[peer],
             "s_per_s": statistics.median(times),
             "process_s": statistics.median(run["process_s"] for run in runs[peer]),
             "ratio": statistics.median(p / e for p, e in zip(times, emasim, strict=True)),

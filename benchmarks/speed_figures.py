@@ -3,7 +3,8 @@ they are worded and formatted.
 
     python benchmarks/speed_figures.py       # rewrite docs/speed.md's block from results.json
 
-``bench_engine.py --write`` measures, stores ``results.json`` and calls :func:`write_page`.
+``bench_engine.py --write`` measures, stores ``results.json`` and calls :func:`write_page`;
+``bench_peers.py --write`` does the same for its section, ``peers`` (emasim against its peers).
 docs/speed.md holds the figures between ``<!-- speed-figures:begin -->`` and
 ``<!-- speed-figures:end -->`` and nowhere else; ``tests/test_speed_figures.py`` checks that the
 block equals :func:`render` of the stored results. Standard library only: the test loads this
@@ -131,6 +132,40 @@ def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
             f"{seconds(ref['reference_s'])})",
         )
     )
+    return rows
+
+
+def peer_rows(results: dict) -> list[tuple[str, str, str]]:
+    """``bench_peers.py``'s section: emasim's command line, then each peer on the same
+    experiment."""
+    peers = results.get("peers")
+    if peers is None:
+        return []
+    emasim = peers["emasim"]
+    rounds = f"median of {peers['pairs']} fresh processes"
+    rows = [
+        (
+            f"`emasim run {peers['scenario']} -c {peers['controller']} --no-plot`, "
+            f"{given(peers['duration_s'])} simulated, against the same experiment on its peers "
+            "(`benchmarks/bench_peers.py`; each script in `benchmarks/peers/` says what matches "
+            "and what differs)",
+            f"{rounds} (meta.json's simulation wall time), interleaved with the peers', after "
+            f"one warm-up each; measured on {peers['date']}",
+            f"{sig(emasim['s_per_s'], 3)} s per simulated s; the whole process "
+            f"{seconds(emasim['process_s'])}",
+        )
+    ]
+    for name, peer in peers["peers"].items():
+        rows.append(
+            (
+                f"the same on {name} {peer['version']} (`{peer['script']}`: {peer['setup']}; "
+                "the same PMSM, inertia, friction levels, gains and steps, on rigid mechanics)",
+                f"{rounds}, its simulation loop alone, interleaved with emasim's",
+                f"{sig(peer['s_per_s'], 3)} s per simulated s: {sig(peer['ratio'], 2)}× "
+                f"emasim's (median of the paired ratios); the whole process "
+                f"{seconds(peer['process_s'])}",
+            )
+        )
     return rows
 
 
@@ -280,7 +315,8 @@ def render(results: dict) -> str:
         "| what | how | measured |",
         "|---|---|---|",
     ]
-    rows = rtf_rows(results) + process_rows(results) + memory_rows(results) + fmu_rows(results)
+    rows = rtf_rows(results) + peer_rows(results) + process_rows(results)
+    rows += memory_rows(results) + fmu_rows(results)
     lines += [f"| {what} | {how} | {figure} |" for what, how, figure in rows]
     return "\n".join(lines) + "\n"
 
