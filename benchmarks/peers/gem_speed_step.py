@@ -17,9 +17,10 @@ current loop with decoupling (500 Hz internal-model gains, id* = 0), acting in d
 gem's ``DqToAbcActionProcessor``.
 
 Differs: the mechanics are one rigid inertia (no backlash, no LuGre bristle state, no rod and
-rudder masses of their own); gem's B6 bridge gives |u| <= Udc/2 per axis (emasim's SVPWM:
-|u| <= Udc/sqrt(3); the run needs far less); the episode's current constraint is off so that
-no transient ends the run; gem's default ODE solver (scipy's dopri5, one call per step).
+rudder masses of their own); the dq voltage is limited to |u| <= Udc/2, what gem's B6 bridge
+gives without zero-sequence injection (emasim's SVPWM: Udc/sqrt(3); the run needs far
+less); the episode's current constraint is off so that no transient ends the run; gem's
+default ODE solver (scipy's dopri5, one call per step).
 gem_controllers (shipped with 3.0.3) cannot be used: ``GemController.make`` fails for every
 PMSM speed or torque environment (its squared clipping stage has no action range).
 
