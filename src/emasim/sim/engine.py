@@ -26,6 +26,7 @@ from ..interface import (
     LIMIT_SPEED,
     LIMIT_VOLTAGE,
     M_ANGLE,
+    M_FORCE,
     M_IQ,
     M_POSITION,
     M_RUDDER,
@@ -44,7 +45,7 @@ from ..plant import actuator as A
 from ..plant import integrator
 from ..plant.elements.motor import limit_voltage
 from ..plant.elements.ratings import folded_back, heat_update, speed_foldback
-from ..plant.sensors import measure, seed_noise
+from ..plant.sensors import ST_HELD, measure, seed_noise
 from ..signals import signal_derivatives, signal_value
 from .borrowed import borrowed_record
 from .core import (
@@ -72,7 +73,11 @@ from .trace import (
     C_CURRENT_LIMIT,
     C_IQ_REF,
     C_LIMIT_FLAGS,
+    C_MEASURED_ANGLE,
+    C_MEASURED_FORCE,
+    C_MEASURED_IQ,
     C_MEASURED_POSITION,
+    C_MEASURED_ROD,
     C_MEASURED_RUDDER,
     C_MEASURED_SPEED,
     C_MOTOR_LOAD,
@@ -243,6 +248,10 @@ def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
     row[C_MEASURED_SPEED] = meas[M_SPEED]
     row[C_MEASURED_POSITION] = meas[M_POSITION]
     row[C_MEASURED_RUDDER] = meas[M_RUDDER]
+    row[C_MEASURED_ANGLE] = meas[M_ANGLE]
+    row[C_MEASURED_ROD] = data.sensor_state[M_POSITION, ST_HELD]  # meas: the loop's reading
+    row[C_MEASURED_IQ] = meas[M_IQ]
+    row[C_MEASURED_FORCE] = meas[M_FORCE]
     columns, trace = model.trace_columns, data.trace
     for j in range(columns.size):
         trace[j, r] = row[columns[j]]

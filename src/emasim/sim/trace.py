@@ -33,6 +33,10 @@ MEASURED_COLUMNS = (
     Quantity("measured_speed_rad_s", "rad/s", "speed sensor reading"),
     Quantity("measured_position_m", "m", "the position loop's reading: rod sensor, or rudder"),
     Quantity("measured_rudder_rad", "rad", "rudder encoder reading"),
+    Quantity("measured_angle_rad", "rad", "motor encoder reading"),
+    Quantity("measured_rod_position_m", "m", "rod sensor reading (the rod's extension)"),
+    Quantity("measured_iq_A", "A", "q-axis current reading"),
+    Quantity("measured_force_N", "N", "rod force sensor reading"),
 )
 TRACE = Layout(
     (
@@ -61,3 +65,7 @@ C_RUDDER_LOAD = TRACE.index("rudder_load_Nm")
 C_MEASURED_SPEED = TRACE.index("measured_speed_rad_s")
 C_MEASURED_POSITION = TRACE.index("measured_position_m")
 C_MEASURED_RUDDER = TRACE.index("measured_rudder_rad")
+C_MEASURED_ANGLE = TRACE.index("measured_angle_rad")
+C_MEASURED_ROD = TRACE.index("measured_rod_position_m")
+C_MEASURED_IQ = TRACE.index("measured_iq_A")
+C_MEASURED_FORCE = TRACE.index("measured_force_N")
