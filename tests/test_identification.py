@@ -272,14 +272,19 @@ def test_bad_data_and_keys_get_one_line_and_exit_code_2(tmp_path, trace):
     _refused([*data, "--map", "qm=rod_speed"], "not a signal of this model")
     _refused([*data, "--method", "idim", "--fit", "loop.kp_per_s=1:500"], "inverse model")
     _refused([*data, "--method", "guess"], "choose one of")
-    _refused(["identify", "speed-step", "--data", str(trace)], "not an axis scenario")
+    _refused(["identify", "speed-step", "--data", str(trace), "-l", "PI"], "no column for")
+    _refused([*data, "--fit", "plant.mass_kg,plant.drive_gain_N_per_V=0.5:2"], "take a factor")
+    _refused([*data, "--fit", "plant.mass_kg=*0.5:2"], "values, not factors")
+    _refused([*data, "--label", "PID"], "one controller")
     _refused(["identify", "emps", "--data", str(tmp_path / "none.csv")], "no such file")
     _refused(["identify", "emps", "--data", str(tmp_path)], "give a .csv")
 
 
-def test_identify_is_refused_when_the_scenario_is_not_an_axis_one_from_python(trace):
-    with pytest.raises(InputError, match="not an axis scenario"):
+def test_an_actuator_scenario_refuses_a_trace_without_its_readings_from_python(trace):
+    with pytest.raises(InputError, match="compares controller sets; choose the one"):
         identify("bench-step", trace)
+    with pytest.raises(InputError, match="no column for time_s, angle_rad"):
+        identify("bench-step", trace, label="PID")
 
 
 def test_a_series_of_traces_tracks_a_rising_friction_with_its_intervals(tmp_path):

@@ -37,7 +37,8 @@ ALLOWED = {
     "analysis": BASE | {"signals"},
     # the battery overlays the linear model (emasim.linear sits on sim and scenarios)
     "experiments": BASE | {"plant", "control", "sim", "scenarios", "analysis", "linear"},
-    "identification": BASE | {"plant", "control", "sim", "scenarios", "analysis"},
+    # it simulates through experiments (the bench's fit, the wear study of a series)
+    "identification": BASE | {"plant", "control", "sim", "scenarios", "analysis", "experiments"},
 }
 # a saved Result draws its own plot.png; analysis never imports sim, so this makes no cycle
 EXCEPTIONS = {("sim/result.py", "analysis")}

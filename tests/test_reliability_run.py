@@ -181,10 +181,10 @@ def test_load_reads_what_it_wrote_and_counts_the_rows(saved_runs):
 
     for fmt in ("parquet", "csv", "mat"):
         meta = json.loads((saved_runs / fmt / "meta.json").read_text())
-        assert meta["traces"] == {"file": f"result.{fmt}", "rows": 500, "columns": 25}
+        assert meta["traces"] == {"file": f"result.{fmt}", "rows": 500, "columns": 29}
         marker = json.loads((saved_runs / fmt / ".emasim-result").read_text())
         assert set(marker["sha256"]) == set(marker["files"])
-        assert Result.load(saved_runs / fmt).data.shape == (500, 25)
+        assert Result.load(saved_runs / fmt).data.shape == (500, 29)
 
 
 def test_load_refuses_a_foreign_or_missing_folder_and_an_unproven_result(saved_runs, tmp_path):

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from emasim.experiments import robustness
-from emasim.experiments.study import _resolved, plan_study
+from emasim.experiments.study import plan_study, resolved_value
 from emasim.experiments.uncertainty import (
     ROWS,
     SEED,
@@ -83,9 +83,12 @@ def test_each_range_validates_at_both_ends_on_its_own_keys(scenario):
         for job, end in zip(jobs, ends, strict=True):
             got = job.scenario.model_dump(mode="json")
             for key in v.keys:
-                base = _resolved(nominal, key)
+                base = resolved_value(nominal, key)
                 want = np.multiply(base, end) if v.relative else end
-                assert np.all(np.isclose(_resolved(got, key), want, rtol=1e-9)), (row.name, key)
+                assert np.all(np.isclose(resolved_value(got, key), want, rtol=1e-9)), (
+                    row.name,
+                    key,
+                )
 
 
 def test_the_delay_is_drawn_in_whole_solver_steps_and_the_encoder_error_within_its_class():

@@ -899,7 +899,11 @@ def _print_datasheet(result) -> None:
 @app.command()
 def identify(
     scenario: Annotated[
-        str, typer.Argument(help='an axis scenario: emps, or a .toml path with kind = "axis"')
+        str,
+        typer.Argument(
+            help="the scenario whose experiment made the trace: emps (an axis), bench-identify "
+            "(the bench's friction, backlash and clearance), or a .toml path"
+        ),
     ],
     data: Annotated[
         list[Path],
@@ -919,8 +923,8 @@ def identify(
         typer.Option(
             "--fit",
             "-f",
-            help="KEY or KEY=LOW:HIGH to fit, e.g. plant.mass_kg=10:1000 (repeatable; "
-            "default: the scenario's identify.fit)",
+            help="KEY or KEY=LOW:HIGH to fit, e.g. plant.mass_kg=10:1000, or KEY,KEY=*LOW:HIGH "
+            "for a factor on their values (repeatable; default: the scenario's identify.fit)",
         ),
     ] = None,
     mapping: Annotated[
@@ -941,6 +945,18 @@ def identify(
         int, typer.Option("--starts", help="output-error starts (the first from IDIM-LS)")
     ] = 1,
     setting: SettingOption = None,
+    label: Annotated[
+        str | None,
+        typer.Option("--label", "-l", help="the controller set that ran the experiment"),
+    ] = None,
+    wear: Annotated[
+        bool,
+        typer.Option(
+            "--wear",
+            help="with a series: run the bench experiments, PID and hybrid, at each trace's "
+            "identified values (minutes; resumable, in runs/robustness/)",
+        ),
+    ] = False,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -962,18 +978,21 @@ def identify(
         "settings": setting or [],
         "validate": validate or [],
         "starts": starts,
+        "label": label,
     }
     try:
         if out is not None:
             check_folder(out, force)  # refuse before spending the fit's time
         target = out or default_folder(scenario)
-        if len(data) > 1 or at:
-            series = identify_series(scenario, data, at, out=target, force=force, **options)
+        if len(data) > 1 or at or wear:
+            series = identify_series(
+                scenario, data, at, out=target, force=force, wear=wear, **options
+            )
         else:
             result = run_identify(scenario, data[0], out=target, force=force, **options)
     except EmasimError as err:
         _fail(err)
-    if len(data) > 1 or at:
+    if len(data) > 1 or at or wear:
         _print_series(series)
         return
     if _loud():
@@ -1007,12 +1026,24 @@ def _print_series(series) -> None:
         table = Table(title="identified over the series (value ± 95 % interval)")
         table.add_column("at")
         for key in keys:
-            table.add_column(key.rsplit(".", 1)[-1], justify="right")
+            table.add_column(_short_key(key), justify="right")
         for _, row in series.table.iterrows():
             cells = [f"{row[k]:.5g} ± {row[f'{k} interval95']:.2g}" for k in keys]
             table.add_row(str(row["at"]), *cells)
         console.print(table)
-    log.info(f"wrote {series.folder}/ (series.csv, series.png, a folder per trace)")
+    wear = ", wear.json, wear.png" if series.wear is not None else ""
+    log.info(f"wrote {series.folder}/ (series.csv, series.png{wear}, a folder per trace)")
+
+
+def _short_key(key: str) -> str:
+    """A key's last dotted part; a factor on several paths: their common part's, 'factor'."""
+    from .experiments.variation import FACTOR
+
+    if not key.endswith(FACTOR):
+        return key.rsplit(".", 1)[-1]
+    parts = [path.split(".") for path in key.removesuffix(FACTOR).split(",")]
+    common = [p[0] for p in zip(*parts, strict=False) if len(set(p)) == 1]
+    return (common[-1] if common else "keys") + FACTOR
 
 
 runs_app = typer.Typer(help="The results emasim wrote under a folder: list them, prune old ones.")

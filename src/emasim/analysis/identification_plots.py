@@ -3,7 +3,15 @@ residual below it, and a series' values against the trace's date or cycle count.
 
 import numpy as np
 
-UNITS = {"position_m": ("position", "mm", 1e3), "command_V": ("drive input", "V", 1.0)}
+UNITS = {  # an output -> (what it is, the figure's unit, the scale from its own)
+    "position_m": ("position", "mm", 1e3),
+    "command_V": ("drive input", "V", 1.0),
+    "angle_rad": ("motor encoder", "rad", 1.0),
+    "rod_position_m": ("rod sensor", "mm", 1e3),
+    "iq_A": ("q current", "A", 1.0),
+    "force_N": ("rod force", "N", 1.0),
+    "rudder_rad": ("rudder encoder", "deg", 180.0 / np.pi),
+}
 
 
 def fit_figure(time: np.ndarray, measured: dict, simulated: dict, title: str):

@@ -164,7 +164,7 @@ def plan_study(spec: StudySpec) -> Plan:
     for label in labels:
         resolved = validate_scenario(variants[label], source).model_dump(mode="json")
         for point in points:
-            scenario = _sample_scenario(variants[label], resolved, variations, point.values, source)
+            scenario = sample_scenario(variants[label], resolved, variations, point.values, source)
             run_id = f"{slug(label)}-{point.index:05d}"
             columns = {v.name: v.column(point.values[v.name]) for v in variations}
             jobs.append(Job(run_id, label, point.index, columns, scenario))
@@ -187,38 +187,52 @@ def _variant_tables(raw: dict, nominal) -> dict[str, dict]:
     }
 
 
-def _sample_scenario(
-    raw: dict, resolved: dict, variations: list[Variation], values: dict, source: str
+def sample_scenario(
+    raw: dict,
+    resolved: dict,
+    variations: list[Variation],
+    values: dict,
+    source: str,
+    what: str = "--vary",
 ):
     """The validated scenario of one sample: each variation's value set on a copy of ``raw``.
     A '*' variation multiplies the ``resolved`` scenario's value; a number given for a key
-    that holds a list of numbers (the linkage's four hinge clearances) sets every element."""
-    table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
-    for variation in variations:
-        for i, key in enumerate(variation.keys):
-            value = variation.value_of(values[variation.name], i)
-            nominal = _resolved(resolved, key)
-            if isinstance(nominal, list) and _is_number(value):
-                value_of = [value * x if variation.relative else value for x in nominal]
-            elif variation.relative:
-                if not _is_number(nominal):
-                    raise InputError(f"--vary {key}: the scenario has no number there to scale")
-                value_of = value * nominal
-            else:
-                value_of = value
-            set_key(table, key, value_of, "--vary")
+    that holds a list of numbers (the linkage's four hinge clearances) sets every element.
+    ``what`` names the option in an error's line."""
+    table = sampled_table(raw, resolved, variations, values, what)
     try:
         return validate_scenario(table, source)
     except InputError as err:
         shown = ", ".join(f"{k}={v!r}" for k, v in values.items())
-        raise InputError(f"--vary: the sample {shown} is not a valid scenario: {err}") from None
+        raise InputError(f"{what}: the sample {shown} is not a valid scenario: {err}") from None
+
+
+def sampled_table(
+    raw: dict, resolved: dict, variations: list[Variation], values: dict, what: str = "--vary"
+) -> dict:
+    """A copy of ``raw`` with each variation's value set (:func:`sample_scenario`)."""
+    table = json.loads(json.dumps(raw))  # a deep copy of plain TOML data
+    for variation in variations:
+        for i, key in enumerate(variation.keys):
+            value = variation.value_of(values[variation.name], i)
+            nominal = resolved_value(resolved, key)
+            if isinstance(nominal, list) and _is_number(value):
+                value_of = [value * x if variation.relative else value for x in nominal]
+            elif variation.relative:
+                if not _is_number(nominal):
+                    raise InputError(f"{what} {key}: the scenario has no number there to scale")
+                value_of = value * nominal
+            else:
+                value_of = value
+            set_key(table, key, value_of, what)
+    return table
 
 
 def _is_number(value) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-def _resolved(resolved: dict, key: str):
+def resolved_value(resolved: dict, key: str):
     """The value at a dotted key of a resolved scenario, None where it has none (a key the
     scenario leaves out, set by the variation itself)."""
     value = resolved

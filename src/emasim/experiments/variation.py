@@ -37,6 +37,7 @@ from ..errors import InputError
 DISTRIBUTIONS = {"uniform": 2, "normal": 2, "loguniform": 2, "integers": 2, "discrete": 3}
 RANGES = {"linspace": 3, "geomspace": 3}
 _CALL = re.compile(r"^(?P<name>[a-z]+)\((?P<args>.*)\)$")
+FACTOR = " (factor)"  # after the paths of a '*' key in a result's names (emasim identify)
 MAX_SAMPLES = 100_000
 INT_MIN, INT_MAX = -(2**63), 2**63 - 1  # what integers(a, b) draws (numpy's int64)
 FLOAT_MAX = float(np.finfo(float).max)

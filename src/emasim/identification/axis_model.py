@@ -29,7 +29,7 @@ from ..scenarios.loader import set_key
 from ..sim.axis_loop import simulate_axis
 from . import idim
 from .data import SAMPLING_TOLERANCE, Trace, load_trace
-from .fit import Key, relative_error
+from .fit import DIFF_STEP, TOLERANCE, Key, relative_error
 
 PLANT_PREFIX = "plant."
 
@@ -37,6 +37,11 @@ PLANT_PREFIX = "plant."
 class AxisModel:
     """An axis scenario (its raw table, so that candidate values are validated as a file's
     would be) and the measured trace it is identified against."""
+
+    diff_step = DIFF_STEP  # the output-error fit's relative step (emasim.identification.fit)
+    tolerance = TOLERANCE  # ... and its stopping tolerance
+    threads = 1  # its simulations take milliseconds: one at a time
+    time_signal = "time_s"
 
     def __init__(self, raw: dict, source: str, trace: Trace, scenario: AxisScenario | None = None):
         self.raw, self.source, self.trace = raw, source, trace
@@ -71,8 +76,17 @@ class AxisModel:
         """Refuse, in one line, a key that is not a number of the scenario or whose range
         leaves the field's own."""
         for key in keys:
+            if key.scaled:
+                raise InputError(f"--fit {key.path}: an axis scenario fits values, not factors")
             for value in (key.low, key.high):
                 self.with_values({key.path: value}, what=f"--fit {key.path}")
+
+    def value(self, key: Key) -> float:
+        """The scenario's own value of ``key``, the fit's start without an IDIM estimate."""
+        value = raw_value(self.raw, key.path)
+        if not isinstance(value, float | int):
+            raise InputError(f"--fit {key.path}: the scenario does not set it; give it with --set")
+        return float(value)
 
     def raw_with(self, values: dict[str, float], what: str = "--fit") -> dict:
         """A copy of the scenario's raw table with the dotted keys set to ``values``."""

@@ -1,21 +1,24 @@
 """The keys a fit varies, and the output-error fit: bounded nonlinear least squares.
 
 A key is a scenario's dotted path with its range, ``plant.mass_kg=10:1000`` (the range is the
-scenario's default where only the path is given). The output-error fit simulates the model
-with the candidate values and minimises the weighted relative residuals of the measured
-outputs,
+scenario's default where only the path is given), or a factor on several paths' own values,
+``plant.friction.coulomb_Nm,plant.friction.static_Nm=*0.25:4``. The output-error fit
+simulates the model with the candidate values and minimises the weighted relative residuals of
+the measured outputs (or of features of them: emasim.identification.bench_model),
 
     r = [w_j (y_j,sim - y_j,meas) / |y_j,meas|  for each output j],
 
 by scipy.optimize.least_squares (trust-region reflective within the ranges, the Jacobian by
-forward differences of relative step ``DIFF_STEP``). ``starts`` > 1 adds starts drawn in the
-ranges (a scrambled Sobol sequence, seeded) and keeps the best: a multi-start for a
-multimodal cost. At the optimum, the covariance s^2 (J^T J)^-1 with s^2 = |r|^2 / (N - p)
-gives each value's 95 % interval (1.96 standard deviations) and the correlations. The
-residuals of a closed loop are correlated in time, so these intervals are narrower than the
-truth; they rank what the data pin down and what they do not.
+forward differences of relative step ``DIFF_STEP``, its columns simulated side by side where a
+model allows). ``starts`` > 1 adds starts drawn in the ranges (a scrambled Sobol sequence,
+seeded) and keeps the best: a multi-start for a multimodal cost. At the optimum, the
+covariance s^2 (J^T J)^-1 with s^2 = |r|^2 / (N - p) gives each value's 95 % interval (1.96
+standard deviations) and the correlations. The residuals of a closed loop are correlated in
+time, so these intervals are narrower than the truth; they rank what the data pin down and
+what they do not.
 """
 
+import concurrent.futures
 import math
 import time
 from collections.abc import Callable
@@ -24,19 +27,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EmasimError, InputError
+from ..experiments.variation import FACTOR
 
 DIFF_STEP = 1e-3
+TOLERANCE = 1e-8  # scipy's default ftol and xtol
 NULL_DIRECTION = 1e-10  # a singular value this far below the largest: a direction unseen
 Z95 = 1.959963984540054  # the two-sided 95 % point of the normal distribution
 
 
 @dataclass(frozen=True)
 class Key:
-    """A fitted key: its dotted path and range."""
+    """A fitted key: its dotted path and range. A ``scaled`` key (``KEY[,KEY...]=*LOW:HIGH``)
+    is a factor on the scenario's own value of each of its comma-separated paths, fitted as
+    one number (friction's Coulomb, stiction and viscous parts together)."""
 
     path: str
     low: float
     high: float
+    scaled: bool = False
+
+    @property
+    def paths(self) -> tuple[str, ...]:
+        """The dotted paths the key sets."""
+        return tuple(self.path.split(","))
+
+    @property
+    def name(self) -> str:
+        """How results name it: the path, with FACTOR after a scaled key's."""
+        return self.path + FACTOR if self.scaled else self.path
 
 
 def parse_keys(items: list[str], defaults: list[str]) -> list[Key]:
@@ -55,8 +73,8 @@ def parse_keys(items: list[str], defaults: list[str]) -> list[Key]:
 
 def _key(item: str, ranges: dict[str, Key], what: str) -> Key:
     path, sep, span = item.partition("=")
-    path = path.strip()
-    if not path or any(not part for part in path.split(".")):
+    path = ",".join(part.strip() for part in path.split(","))
+    if not path or any(not part for one in path.split(",") for part in one.split(".")):
         raise InputError(f"{what} {item!r}: give KEY or KEY=LOW:HIGH with a dotted KEY")
     if not sep:
         if path not in ranges:
@@ -65,14 +83,17 @@ def _key(item: str, ranges: dict[str, Key], what: str) -> Key:
                 f"for {', '.join(ranges) or 'no key'})"
             )
         return ranges[path]
-    low, colon, high = span.partition(":")
+    scaled = span.strip().startswith("*")
+    if "," in path and not scaled:
+        raise InputError(f"{what} {item!r}: keys fitted together take a factor, KEY,KEY=*LOW:HIGH")
+    low, colon, high = span.strip().removeprefix("*").partition(":")
     try:
         lo, hi = float(low), float(high)
     except ValueError:
         lo = hi = math.nan
     if not colon or not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise InputError(f"{what} {item!r}: the range must be LOW:HIGH, finite, LOW < HIGH")
-    return Key(path, lo, hi)
+    return Key(path, lo, hi, scaled)
 
 
 @dataclass(frozen=True)
@@ -98,17 +119,25 @@ def output_error(
     start: np.ndarray,
     starts: int = 1,
     seed: int = 0,
+    diff_step: float = DIFF_STEP,
+    tolerance: float = TOLERANCE,
+    threads: int = 1,
 ) -> Fit:
     """Minimise |residuals(values)|^2 over the keys' ranges from ``start`` (module
-    docstring). A candidate whose simulation diverges scores a residual of 1 per sample (the
-    start itself must simulate: its error is raised)."""
+    docstring), until a step changes the cost or the values by less than ``tolerance``
+    (relative). The Jacobian is by forward differences of step diff_step * max(1, |x|),
+    taken towards the range's inside: scipy's own, or with ``threads`` > 1 the same rule with
+    its columns simulated that many at a time (the compiled engine releases the GIL). A
+    candidate whose
+    simulation diverges scores a residual of 1 per sample (the start itself must simulate:
+    its error is raised)."""
     from scipy.optimize import least_squares
     from scipy.stats import qmc
 
     low = np.array([k.low for k in keys])
     high = np.array([k.high for k in keys])
     started = time.perf_counter()
-    size, count = None, 0
+    size, count, last = None, 0, {}
 
     def guarded(values):
         nonlocal count, size
@@ -120,7 +149,18 @@ def output_error(
                 raise
             return np.ones(size)
         size = r.size
+        last["x"], last["r"] = np.array(values), r
         return r
+
+    def jacobian(x):
+        steps = diff_step * np.maximum(1.0, np.abs(x))
+        steps = np.where(x + steps > high, -steps, steps)
+        steps = (x + steps) - x  # the step the rounded point takes
+        points = [x + step * unit for step, unit in zip(steps, np.eye(x.size), strict=True)]
+        r0 = last["r"] if np.array_equal(last.get("x"), x) else guarded(x)
+        with concurrent.futures.ThreadPoolExecutor(threads) as pool:
+            columns = list(pool.map(guarded, points))
+        return np.column_stack([(r - r0) / step for r, step in zip(columns, steps, strict=True)])
 
     points = [np.clip(start, low, high)]
     if starts > 1:
@@ -129,15 +169,23 @@ def output_error(
     best = None
     for point in points:
         result = least_squares(
-            guarded, point, bounds=(low, high), diff_step=DIFF_STEP, x_scale="jac", method="trf"
+            guarded,
+            point,
+            jac=jacobian if threads > 1 else "2-point",
+            bounds=(low, high),
+            diff_step=diff_step,
+            x_scale="jac",
+            method="trf",
+            ftol=tolerance,
+            xtol=tolerance,
         )
         if best is None or result.cost < best.cost:
             best = result
     std, correlation = spread(best.jac, best.fun)
     return Fit(
         tuple(keys),
-        {k.path: float(v) for k, v in zip(keys, best.x, strict=True)},
-        {k.path: float(Z95 * s) for k, s in zip(keys, std, strict=True)},
+        {k.name: float(v) for k, v in zip(keys, best.x, strict=True)},
+        {k.name: float(Z95 * s) for k, s in zip(keys, std, strict=True)},
         correlation,
         float(best.cost),
         count,

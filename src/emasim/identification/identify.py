@@ -27,10 +27,16 @@ from ..jsonio import json_text
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import new_file, write_folder, write_new
 from ..scenarios.axis_scenario import is_axis_scenario, read_axis_raw
-from ..scenarios.loader import apply_setting
+from ..scenarios.loader import (
+    apply_setting,
+    choose_controllers,
+    read_scenario_file,
+    read_scenario_text,
+)
 from ..toml_text import laid_over
 from ..version import __version__
-from .axis_model import AxisModel, raw_value
+from .axis_model import AxisModel
+from .bench_model import BenchModel
 from .data import parse_map
 from .fit import Z95, Fit, Key, output_error, parse_keys
 from .idim import Estimate
@@ -121,14 +127,14 @@ def on_bound(keys: list[Key], values: dict[str, float]) -> dict[str, str]:
     found = {}
     for key in keys:
         margin = 1e-9 * (key.high - key.low)
-        if values[key.path] <= key.low + margin:
-            found[key.path] = "lower"
-        elif values[key.path] >= key.high - margin:
-            found[key.path] = "upper"
+        if values[key.name] <= key.low + margin:
+            found[key.name] = "lower"
+        elif values[key.name] >= key.high - margin:
+            found[key.name] = "upper"
     return found
 
 
-def _estimate(model: AxisModel, keys: list[Key], method: str, starts: int):
+def _estimate(model, keys: list[Key], method: str, starts: int):
     """(values, 95 % half-intervals, correlation matrix, IDIM estimate, output-error fit)."""
     estimate = None
     try:
@@ -139,10 +145,37 @@ def _estimate(model: AxisModel, keys: list[Key], method: str, starts: int):
     if method == "idim":
         interval = {k: Z95 * s for k, s in estimate.std.items()}
         return estimate.values, interval, estimate.correlation, estimate, None
-    start = np.array([estimate.values[k.path] if estimate else _value(model, k.path) for k in keys])
+    start = np.array([estimate.values[k.path] if estimate else model.value(k) for k in keys])
     start = np.clip(start, [k.low for k in keys], [k.high for k in keys])
-    fit = output_error(model.residuals(keys), keys, start, starts=starts)
+    fit = output_error(
+        model.residuals(keys),
+        keys,
+        start,
+        starts=starts,
+        diff_step=model.diff_step,
+        tolerance=model.tolerance,
+        threads=model.threads,
+    )
     return fit.values, fit.interval95, fit.correlation, estimate, fit
+
+
+def bind(scenario: str, data, settings=(), columns=None, label: str | None = None):
+    """The model of ``scenario`` bound to the trace in ``data``, and the scenario's text: an
+    AxisModel for an axis scenario, a BenchModel (its experiment's readings) otherwise;
+    ``label`` chooses an actuator scenario's controller set."""
+    columns = columns or {}
+    if is_axis_scenario(str(scenario)):
+        if label is not None:
+            raise InputError(f"--label {label}: an axis scenario has one controller")
+        raw, source, text = read_axis_raw(str(scenario))
+        for setting in settings:
+            apply_setting(raw, setting)
+        return AxisModel.read(raw, source, data, columns), text
+    raw, source = read_scenario_file(str(scenario))
+    choose_controllers(raw, [], label)
+    for setting in settings:
+        apply_setting(raw, setting)
+    return BenchModel(raw, source, data, columns), read_scenario_text(str(scenario))[0]
 
 
 def identify(
@@ -156,31 +189,32 @@ def identify(
     starts: int = 1,
     out: str | Path | None = None,
     force: bool = False,
+    label: str | None = None,
 ) -> Identified:
-    """Identify ``scenario``'s keys ``fit`` (``KEY`` or ``KEY=LOW:HIGH``; the scenario's
-    defaults where none is given) from the trace in ``data`` (module docstring); ``mapping``
-    items ``FILE_COLUMN=SIGNAL`` add to the scenario's column map, ``settings`` items
-    ``KEY=VALUE`` change it first. ``out``: the result folder (None: written nowhere; the
-    command line writes runs/<scenario>/identify-<time> by default)."""
+    """Identify ``scenario``'s keys ``fit`` (``KEY`` or ``KEY=LOW:HIGH``, or
+    ``KEY[,KEY...]=*LOW:HIGH`` for a factor; the scenario's defaults where none is given)
+    from the trace in ``data`` (module docstring); ``mapping`` items ``FILE_COLUMN=SIGNAL``
+    add to the scenario's column map, ``settings`` items ``KEY=VALUE`` change it first,
+    ``label`` chooses a comparison's controller set. ``out``: the result folder (None: written
+    nowhere; the command line writes runs/<scenario>/identify-<time> by default)."""
     started = time.perf_counter()
-    if not is_axis_scenario(str(scenario)):
-        raise InputError(
-            f"identify: '{scenario}' is not an axis scenario (kind = \"axis\"); identify "
-            'takes emps or a file declaring kind = "axis"'
-        )
     if starts < 1:
         raise InputError(f"--starts {starts}: give at least 1")
-    raw, source, text = read_axis_raw(str(scenario))
-    for setting in settings:
-        apply_setting(raw, setting)
     columns = parse_map(list(mapping))
-    model = AxisModel.read(raw, source, data, columns)
-    chosen = method or model.scenario.identify.method
+    model, text = bind(scenario, data, settings, columns, label)
+    defaults = model.scenario.identify
+    chosen = method or getattr(defaults, "method", "output-error")
     if chosen not in METHODS:
         raise InputError(f"--method {chosen}: choose one of {', '.join(METHODS)}")
-    keys = parse_keys(list(fit), model.scenario.identify.fit)
+    if defaults is None and not fit:
+        raise InputError(
+            f"--fit: {model.scenario.name} names no keys to fit; give --fit KEY=LOW:HIGH"
+        )
+    keys = parse_keys(list(fit), defaults.fit if defaults else [])
     model.check_keys(keys)
-    others = [AxisModel.read(raw, source, path, columns) for path in validate]
+    others = [bind(scenario, path, settings, columns, label)[0] for path in validate]
+    for other in others:
+        other.check_keys(keys)
     values, interval, correlation, estimate, result_fit = _estimate(model, keys, chosen, starts)
     blind = [key for key, half in interval.items() if not np.isfinite(half)]
     if blind:
@@ -200,7 +234,7 @@ def identify(
         values=values,
         interval95=interval,
         on_bound=on_bound(keys, values),
-        correlation=_correlations([k.path for k in keys], correlation),
+        correlation=_correlations([k.name for k in keys], correlation),
         errors=errors,
         validation=validation,
         data={"file": str(model.trace.path), "sha256": model.trace.sha256},
@@ -211,7 +245,7 @@ def identify(
             text, model.raw_with(values), list(values), str(model.trace.path), model.trace.sha256
         ),
         traces={
-            "time_s": model.trace.signals["time_s"],
+            "time_s": model.trace.signals[model.time_signal],
             **{f"measured_{n}": model.trace.signals[n] for n in model.outputs},
             **{f"simulated_{n}": simulated[n] for n in model.outputs},
         },
@@ -225,11 +259,13 @@ def identify(
 class Series:
     """The identification of each trace of a series (wear tracking): ``table`` has one row per
     trace (``at``: its date or cycle count as given, the file, its sha256, each key's value and
-    95 % half-interval, the relative errors), ``runs`` each trace's Identified."""
+    95 % half-interval, the relative errors), ``runs`` each trace's Identified, ``wear`` the
+    wear study at the identified values (emasim.experiments.wear.run_wear_series), if run."""
 
     table: "object"  # a pandas DataFrame
     runs: list[Identified]
     folder: Path | None = None
+    wear: dict | None = None
 
 
 def identify_series(
@@ -238,12 +274,15 @@ def identify_series(
     at: list[str] | None = None,
     out: str | Path | None = None,
     force: bool = False,
+    wear: bool = False,
     **options,
 ) -> Series:
     """:func:`identify` on each trace of ``data`` with the same keys and method (``options``:
     its other arguments), tabulated against ``at`` (each trace's date or cycle count; its
     place in the series by default). ``out`` holds ``series.csv``, ``series.png`` (each key
-    against ``at`` with its interval) and a folder per trace."""
+    against ``at`` with its interval) and a folder per trace. ``wear``: also run the bench
+    experiments with PID and the hybrid at each trace's identified values (the wear study,
+    emasim.experiments.wear.run_wear_series), written as ``wear.json`` and ``wear.png``."""
     import pandas as pd
 
     labels = [str(i) for i in range(len(data))] if not at else [str(a) for a in at]
@@ -261,6 +300,10 @@ def identify_series(
         row.update({f"error {name}": value for name, value in run.errors.items()})
         rows.append(row)
     series = Series(pd.DataFrame(rows), runs)
+    if wear:
+        from ..experiments.wear import run_wear_series
+
+        series = replace(series, wear=run_wear_series(series.table))
     if out is None:
         return series
     return replace(series, folder=_write_series(series, labels, Path(out), force))
@@ -274,6 +317,11 @@ def _write_series(series: Series, labels: list[str], out: Path, force: bool) -> 
         write_new(tmp / "series.csv", series.table.to_csv(index=False))
         keys = list(series.runs[0].values)
         DrawHere().save(lambda: series_figure(series.table, keys), tmp / "series.png")
+        if series.wear is not None:
+            from ..analysis.plots import plot_wear
+
+            write_new(tmp / "wear.json", json_text(series.wear))
+            DrawHere().save(lambda: plot_wear(series.wear), tmp / "wear.png")
         for label, run in zip(labels, series.runs, strict=True):
             folder = tmp / f"{slug(label)}-{slug(Path(run.data['file']).stem)}"
             folder.mkdir()
@@ -285,13 +333,6 @@ def _write_series(series: Series, labels: list[str], out: Path, force: bool) -> 
 def default_folder(scenario: str) -> Path:
     """runs/<scenario>/identify-<time>."""
     return fresh_folder(RUNS_ROOT / slug(Path(scenario).stem), "identify")
-
-
-def _value(model: AxisModel, path: str) -> float:
-    value = raw_value(model.raw, path)
-    if not isinstance(value, float | int):
-        raise InputError(f"--fit {path}: the scenario does not set it; give it with --set")
-    return float(value)
 
 
 def report_text(result: Identified) -> str:

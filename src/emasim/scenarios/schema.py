@@ -330,6 +330,15 @@ def _check_loops(controllers: Controllers, loop: str, where: str) -> None:
         )
 
 
+class Identify(Strict):
+    """How ``emasim identify`` fits the scenario by default: the keys ``fit`` (``KEY=LOW:HIGH``,
+    or ``KEY[,KEY...]=*LOW:HIGH`` for a factor on their own values) and ``map``, a trace's
+    column -> a reading (emasim.identification.bench_features.READINGS)."""
+
+    fit: list[str] = Field(min_length=1, description="the keys fitted when --fit names none")
+    map: dict[str, str] = Field(default={}, description="a trace's column -> a reading")
+
+
 class Scenario(Strict):
     """One experiment: plant, sensors, controllers, reference, loads, timing.
 
@@ -355,6 +364,7 @@ class Scenario(Strict):
     reference: Reference
     load: Load = Load()
     compare: list[Variant] = []
+    identify: Identify | None = None
     tuning: dict[str, str | int | float | dict[str, TuningSet]] = Field(
         default={},
         description="how the gains were obtained (written by emasim tune); 'sets' holds each "
