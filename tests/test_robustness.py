@@ -7,6 +7,7 @@ import pytest
 from scipy.stats import beta
 
 from emasim.analysis.paper_report import robustness_lines
+from emasim.errors import InputError
 from emasim.experiments.robustness import (
     COST,
     improvement_pct,
@@ -170,3 +171,65 @@ def test_the_sensitivity_names_the_parameter_the_improvement_follows():
     ]
     found = sensitivity(pd.DataFrame(rows), COST)
     assert found["parameter"] == backlash and found["spearman"] == pytest.approx(1.0)
+
+
+def series_table() -> pd.DataFrame:
+    """An identify series table as emasim identify --at writes it: two traces of a bench
+    whose friction, backlash and clearance grew."""
+    from emasim.experiments.variation import FACTOR
+
+    friction = (
+        "plant.friction.coulomb_Nm,plant.friction.static_Nm,plant.friction.viscous_Nms_per_rad"
+    )
+    rows = []
+    for at, (factor, backlash, clearance) in {
+        "0": (1.0, 0.1, 0.01),
+        "5000": (1.5, 0.2, 0.03),
+    }.items():
+        row = {"at": at, "file": f"{at}.parquet", "sha256": "0" * 64}
+        for key, value in {
+            friction + FACTOR: factor,
+            "plant.backlash.width_mm": backlash,
+            "plant.linkage.hinge_clearance_mm": clearance,
+        }.items():
+            row[key], row[f"{key} interval95"] = value, 0.01 * value
+        row["error rudder_rad"] = 0.001
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
+    """The identified values over an actuator's life are the wear study's input: each row's
+    scenario holds them (a factor on the bench's own friction), and the degradation is read
+    against the rows' dates or cycle counts."""
+    from emasim.experiments import wear
+    from emasim.experiments.batch import dask_client
+    from emasim.experiments.study import StudySpec
+
+    table = series_table()
+    nominal = load_scenario("bench-sine").plant
+    jobs = plan_study(
+        StudySpec("bench-sine", vary=(wear.series_variation(table, "bench-sine"),))
+    ).jobs
+    worn = [job for job in jobs if job.label == "hybrid"][-1].scenario.plant
+    assert worn.backlash.width_mm == pytest.approx(0.2)
+    assert worn.linkage.hinge_clearance_mm == pytest.approx([0.03] * 4)
+    assert worn.friction.coulomb_Nm == pytest.approx(1.5 * nominal.friction.coulomb_Nm)
+    assert worn.friction.viscous_Nms_per_rad == pytest.approx(
+        1.5 * nominal.friction.viscous_Nms_per_rad
+    )
+    with dask_client(processes=False, workers=1) as client:
+        out = wear.run_wear_series(
+            table,
+            root=tmp_path,
+            client=client,
+            scenarios=("bench-step",),
+            settings=("duration_s=0.2",),
+        )
+    entry = out["bench_step_tuning_cost"]
+    assert entry["at"] == ["0", "5000"] and entry["levels"] == [0, 1]
+    assert all(np.isfinite(entry[label]).all() for label in ("PID", "hybrid"))
+    with pytest.raises(InputError, match="no single non-zero number"):
+        wear.series_variation(
+            table.rename(columns={"plant.backlash.width_mm": "plant.mass_kg"}), "bench-sine"
+        )

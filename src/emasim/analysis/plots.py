@@ -54,11 +54,12 @@ ZOOM_FRACTION = 0.08  # an inset spans this fraction of the run
 
 
 def _event_times(result) -> list[float]:
-    """The start of the response (the reference's first step or sine) and the first load step,
-    where the scenario has them (s)."""
+    """The start of the response (the reference's first step, sine or table) and the first load
+    step, where the scenario has them (s)."""
     times = []
     for terms in result.scenario.get("reference", {}).values():
-        times += [float(term.get("time_s", term.get("start_s", 0.0))) for term in terms[:1]]
+        starts = [term.get("time_s", term.get("start_s", 0.0)) for term in terms[:1]]
+        times += [float(t[0] if isinstance(t, list) else t) for t in starts]  # a table's first
     loads = [term for terms in result.scenario.get("load", {}).values() for term in terms]
     steps = [float(term["time_s"]) for term in loads if term.get("type") == "step"]
     return times[:1] + sorted(steps)[:1]
@@ -322,7 +323,8 @@ def plot_study(table, metrics: list[str], labels: list[str], along: str | None =
 
 
 def plot_wear(degradation: dict):
-    """Each headline figure and tuning cost against the wear level, PID and the hybrid."""
+    """Each headline figure and tuning cost against the wear level, or against the date or
+    cycle count of each identified row (an entry's ``at``), PID and the hybrid."""
     names = list(degradation)
     columns = min(len(names), STUDY_COLUMNS)
     rows = -(-len(names) // columns)
@@ -334,8 +336,12 @@ def plot_wear(degradation: dict):
             if isinstance(values, list) and label != "levels":
                 ax.plot(entry["levels"], values, "o-", ms=3, label=label)
         ax.set_title(f"{name.removesuffix('_reduction')}\n({entry['metric']})", fontsize=8)
-        ax.set_xlabel("wear level (0 new, 4 worn)")
-        ax.set_xticks(entry["levels"])
+        if "at" in entry:
+            ax.set_xlabel("identified at")
+            ax.set_xticks(entry["levels"], entry["at"], fontsize=7)
+        else:
+            ax.set_xlabel("wear level (0 new, 4 worn)")
+            ax.set_xticks(entry["levels"])
         ax.grid(True, alpha=0.3)
     for ax in axes[len(names) :]:
         ax.set_visible(False)

@@ -7,11 +7,23 @@ the screw backlash by 1 + k/2 (to 3x, 0.3 mm), every hinge clearance by 1 + k (t
 0.05 mm) and friction (Coulomb, stiction and viscous together) by 1 + k/4 (to 2x). Each bench
 experiment runs at every level with PID and with the hybrid (a study, :mod:`.study`), in
 ``runs/robustness/wear-<scenario>-<key>/``, found again like the robustness studies.
+
+:func:`run_wear_series` runs the same study at values identified over an actuator's life
+instead of the levels: the table of ``emasim identify --data ... --at ...``
+(emasim.identification.identify.identify_series), one row per trace, each identified key as a
+factor on the bench's own value, in ``runs/robustness/wear-series-<scenario>-<key>/``.
 """
 
+import json
+
 from ..analysis.judged import HYBRID_LABEL, PID_LABEL
+from ..errors import InputError
+from ..scenarios.loader import load_scenario
 from .robustness import ROOT, SCENARIOS, figures, study_key
-from .study import StudySpec, complete_tables, run_study
+from .study import StudySpec, complete_tables, resolved_value, run_study
+from .variation import FACTOR
+
+SERIES_COLUMNS = ("at", "file", "sha256")  # a series table's columns that are no key
 
 LEVELS = 5
 WEAR_KEYS = (
@@ -52,17 +64,73 @@ def latest(root=ROOT) -> dict | None:
     return None if tables is None else degradation(tables)
 
 
-def degradation(tables: dict) -> dict:
+def degradation(tables: dict, level: str = LEVEL, levels: int = LEVELS, at=None) -> dict:
     """figure -> {scenario, metric, levels: [0..], label: [value at each level]} for each
-    headline figure and tuning cost (:func:`emasim.experiments.robustness.figures`)."""
+    headline figure and tuning cost (:func:`emasim.experiments.robustness.figures`), the
+    study tables' column ``level`` holding the level; ``at``: each level's date or cycle
+    count, kept as the entry's ``at``."""
     out = {}
     for name, (scenario, metric) in figures().items():
         if scenario not in tables or metric not in tables[scenario]:
             continue
         table = tables[scenario]
-        entry = {"scenario": scenario, "metric": metric, "levels": list(range(LEVELS))}
+        entry = {"scenario": scenario, "metric": metric, "levels": list(range(levels))}
+        if at is not None:
+            entry["at"] = [str(a) for a in at]
         for label in (PID_LABEL, HYBRID_LABEL):
-            mine = table[table["label"] == label].set_index(LEVEL)[metric]
-            entry[label] = [float(mine.get(level, float("nan"))) for level in range(LEVELS)]
+            mine = table[table["label"] == label].set_index(level)[metric]
+            entry[label] = [float(mine.get(k, float("nan"))) for k in range(levels)]
         out[name] = entry
     return out
+
+
+def series_variation(series, scenario: str) -> str:
+    """The ``--vary`` text that sets ``scenario`` at each row of an identify series table
+    (``series``, a DataFrame): every identified key's paths zipped, as factors on the
+    scenario's own values (a factor key's value as it is; a value over the scenario's, one
+    for every element of a list whose elements are alike). One InputError line for a key
+    the scenario has no number at, or a zero it cannot scale."""
+    resolved = load_scenario(scenario).model_dump(mode="json")
+    keys = [
+        c
+        for c in series.columns
+        if c not in SERIES_COLUMNS and not c.endswith(" interval95") and not c.startswith("error ")
+    ]
+    if not keys or series.empty:
+        raise InputError("--wear: the series holds no identified key")
+    paths, factors = [], []
+    for key in keys:
+        values = series[key].to_numpy(dtype=float)
+        if key.endswith(FACTOR):
+            for path in key.removesuffix(FACTOR).split(","):
+                paths.append(path)
+                factors.append(values)
+            continue
+        own = resolved_value(resolved, key)
+        alike = own if not isinstance(own, list) else (own[0] if len(set(own)) == 1 else None)
+        if not isinstance(alike, int | float) or alike == 0:
+            raise InputError(
+                f"--wear {key}: {scenario} has no single non-zero number there to scale"
+            )
+        paths.append(key)
+        factors.append(values / alike)
+    rows = [[float(f[i]) for f in factors] for i in range(len(series))]
+    return ",".join(paths) + "=*" + json.dumps(rows).replace(" ", "")
+
+
+def run_wear_series(
+    series, root=ROOT, client=None, scheduler=None, scenarios=SCENARIOS, settings=()
+) -> dict:
+    """Run (or resume) each bench experiment with PID and the hybrid at every row of the
+    identify series table ``series`` (:func:`series_variation`); ``settings`` fixed
+    ``KEY=VALUE`` overrides. Returns :func:`degradation` against the rows' ``at``."""
+    tables = {}
+    for scenario in scenarios:
+        vary = (series_variation(series, scenario),)
+        spec = StudySpec(
+            scenario, vary=vary, labels=(PID_LABEL, HYBRID_LABEL), settings=tuple(settings)
+        )
+        folder = root / f"wear-series-{scenario}-{study_key(scenario, vary + tuple(settings))}"
+        tables[scenario] = run_study(spec, folder, client=client, scheduler=scheduler).table
+    level = vary[0].split("=", 1)[0]
+    return degradation(tables, level, len(series), list(series["at"]))
