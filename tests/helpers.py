@@ -137,3 +137,16 @@ def conservative_stand(width_mm: float, gap_stiffness_N_per_m: float) -> PlantPa
     plant.backlash.damping_ratio = 0.0
     plant.load.viscous_Ns_per_m = 0.0
     return plant
+
+
+def refused_in_one_line(args: list[str], match: str) -> None:
+    """``emasim ARGS`` exits with code 2 and prints one line holding ``match``, no traceback."""
+    from typer.testing import CliRunner
+
+    from emasim.cli import app
+
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in result.output, result.output
+    assert match in lines[0], lines[0]

@@ -14,7 +14,7 @@ import tomllib
 import numpy as np
 import pandas as pd
 import pytest
-from helpers import module_at
+from helpers import module_at, refused_in_one_line
 from typer.testing import CliRunner
 
 from emasim.cli import app
@@ -88,14 +88,6 @@ def test_a_worn_plant_is_recovered_from_its_readings_through_the_command_line(tm
     assert {"fit.png", "traces.parquet", "report.md"} <= {p.name for p in out.iterdir()}
 
 
-def _refused(args, match):
-    result = CliRunner().invoke(app, args)
-    assert result.exit_code == 2, result.output
-    lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and "Traceback" not in result.output, result.output
-    assert match in lines[0], lines[0]
-
-
 def test_bad_traces_and_keys_are_refused_in_one_line(tmp_path, worn):
     data, _ = worn
     frame = pd.read_parquet(data)
@@ -107,13 +99,15 @@ def test_bad_traces_and_keys_are_refused_in_one_line(tmp_path, worn):
     for name, (bad, match) in cases.items():
         path = tmp_path / f"{name}.parquet"
         bad.to_parquet(path)
-        _refused(["identify", "bench-identify", "--data", str(path)], match)
+        refused_in_one_line(["identify", "bench-identify", "--data", str(path)], match)
     args = ["identify", "bench-identify", "--data", str(data)]
-    _refused([*args, "--method", "idim"], "not linear in its parameters")
-    _refused([*args, "--set", "load.rudder_torque_Nm=[]"], "load of both signs")
-    _refused([*args, "--fit", "plant.backlash.width_mm=0:20"], "width_mm")
-    _refused([*args, "--fit", "plant.friction.nothing,plant.friction.coulomb_Nm=*1:2"], "nothing")
-    _refused(["identify", "bench-step", "--data", str(data)], "choose the one")
+    refused_in_one_line([*args, "--method", "idim"], "not linear in its parameters")
+    refused_in_one_line([*args, "--set", "load.rudder_torque_Nm=[]"], "load of both signs")
+    refused_in_one_line([*args, "--fit", "plant.backlash.width_mm=0:20"], "width_mm")
+    refused_in_one_line(
+        [*args, "--fit", "plant.friction.nothing,plant.friction.coulomb_Nm=*1:2"], "nothing"
+    )
+    refused_in_one_line(["identify", "bench-step", "--data", str(data)], "choose the one")
 
 
 def test_the_docs_score_is_what_the_benchmark_measured():

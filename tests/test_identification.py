@@ -12,6 +12,7 @@ import tomllib
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import refused_in_one_line
 from typer.testing import CliRunner
 
 from emasim.cli import app
@@ -242,14 +243,6 @@ def trace(tmp_path):
     return synthetic_trace(tmp_path, SYMMETRIC)
 
 
-def _refused(args, match):
-    result = CliRunner().invoke(app, args)
-    assert result.exit_code == 2, result.output
-    lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and "Traceback" not in result.output, result.output
-    assert match in lines[0], lines[0]
-
-
 def test_bad_data_and_keys_get_one_line_and_exit_code_2(tmp_path, trace):
     frame = pd.read_csv(trace)
     cases = {
@@ -261,23 +254,29 @@ def test_bad_data_and_keys_get_one_line_and_exit_code_2(tmp_path, trace):
     for name, (bad, match) in cases.items():
         path = tmp_path / f"{name}.csv"
         bad.to_csv(path, index=False)
-        _refused(["identify", "emps", "--data", str(path)], match)
+        refused_in_one_line(["identify", "emps", "--data", str(path)], match)
     data = ["identify", "emps", "--data", str(trace)]
-    _refused([*data, "--fit", "plant.no_such_kg=1:2"], "no_such_kg")
-    _refused([*data, "--fit", "plant.mass_kg=5:1"], "LOW < HIGH")
-    _refused([*data, "--fit", "plant.mass_kg=-5:1"], "mass_kg")
-    _refused([*data, "--fit", "plant.friction.model=0:1"], "not a number")
-    _refused([*data, "--map", "qm"], "FILE_COLUMN=SIGNAL")
-    _refused([*data, "--map", "nothere=position_m"], "no column nothere")
-    _refused([*data, "--map", "qm=rod_speed"], "not a signal of this model")
-    _refused([*data, "--method", "idim", "--fit", "loop.kp_per_s=1:500"], "inverse model")
-    _refused([*data, "--method", "guess"], "choose one of")
-    _refused(["identify", "speed-step", "--data", str(trace), "-l", "PI"], "no column for")
-    _refused([*data, "--fit", "plant.mass_kg,plant.drive_gain_N_per_V=0.5:2"], "take a factor")
-    _refused([*data, "--fit", "plant.mass_kg=*0.5:2"], "values, not factors")
-    _refused([*data, "--label", "PID"], "one controller")
-    _refused(["identify", "emps", "--data", str(tmp_path / "none.csv")], "no such file")
-    _refused(["identify", "emps", "--data", str(tmp_path)], "give a .csv")
+    refused_in_one_line([*data, "--fit", "plant.no_such_kg=1:2"], "no_such_kg")
+    refused_in_one_line([*data, "--fit", "plant.mass_kg=5:1"], "LOW < HIGH")
+    refused_in_one_line([*data, "--fit", "plant.mass_kg=-5:1"], "mass_kg")
+    refused_in_one_line([*data, "--fit", "plant.friction.model=0:1"], "not a number")
+    refused_in_one_line([*data, "--map", "qm"], "FILE_COLUMN=SIGNAL")
+    refused_in_one_line([*data, "--map", "nothere=position_m"], "no column nothere")
+    refused_in_one_line([*data, "--map", "qm=rod_speed"], "not a signal of this model")
+    refused_in_one_line(
+        [*data, "--method", "idim", "--fit", "loop.kp_per_s=1:500"], "inverse model"
+    )
+    refused_in_one_line([*data, "--method", "guess"], "choose one of")
+    refused_in_one_line(
+        ["identify", "speed-step", "--data", str(trace), "-l", "PI"], "no column for"
+    )
+    refused_in_one_line(
+        [*data, "--fit", "plant.mass_kg,plant.drive_gain_N_per_V=0.5:2"], "take a factor"
+    )
+    refused_in_one_line([*data, "--fit", "plant.mass_kg=*0.5:2"], "values, not factors")
+    refused_in_one_line([*data, "--label", "PID"], "one controller")
+    refused_in_one_line(["identify", "emps", "--data", str(tmp_path / "none.csv")], "no such file")
+    refused_in_one_line(["identify", "emps", "--data", str(tmp_path)], "give a .csv")
 
 
 def test_an_actuator_scenario_refuses_a_trace_without_its_readings_from_python(trace):
@@ -309,4 +308,4 @@ def test_a_series_of_traces_tracks_a_rising_friction_with_its_intervals(tmp_path
     assert (table["plant.friction.coulomb_N interval95"] > 0).all()
     assert (out / "series.png").is_file() and len([p for p in out.iterdir() if p.is_dir()]) == 3
     twice = [str(tmp_path / "again") if a == str(out) else a for a in args[:-1]] + ["5000"]
-    _refused(twice, "each trace needs its own")
+    refused_in_one_line(twice, "each trace needs its own")
