@@ -12,6 +12,7 @@ from .sim.core import D_UD, D_UQ
 from .sim.engine import EngineRun, run_ticks
 from .small_signal import (
     READINGS,
+    ROD_FORCE_STEP_N,
     difference,
     less_rigid,
     moving_states,
@@ -30,11 +31,15 @@ def _shifted(signal: np.ndarray, offset: float) -> np.ndarray:
     return np.concatenate([[signal[0] + 1.0], signal[1:], [KIND_CONSTANT, 1.0, offset]])
 
 
-def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
+def tick_map(scenario: Scenario, setup, p, x0, at_s, load: bool = False) -> control.StateSpace:
     """The closed loop at the control rate: the Jacobian of one tick of the compiled loop
     (emasim.sim.engine.run_ticks: the sensors, the laws as compiled, the drive's limits, the
     computation delay and the RK4 sub-steps) in the plant's moving states, the slots' states
-    and the voltage still applied during the delay, and in the reference's value.
+    and the voltage still applied during the delay, and in the reference's value or, with
+    ``load``, in a rod force held over the tick (the engine reads the loads at each sub-step's
+    midpoint: a constant over the tick), the reference held. Either input acts on the reading
+    one tick later (no feed-through): the reference through the laws, the force through the
+    plant.
 
     The operating point: the run's state at ``at_s``, or the steady state x0 held with the
     reference at its fed-back value, after START_TICKS ticks there (so that each law has made
@@ -58,7 +63,7 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
     slots = [len(s) for s in data.slot_states]
     base = np.concatenate([data.x[states], *data.slot_states, data.drive[[D_UD, D_UQ]]])
 
-    def tick(z, offset=0.0):
+    def tick(z, offset=0.0, force=0.0):
         x = with_states(data.x, states, z[: len(states)])
         chunks = np.split(z[len(states) : -2], np.cumsum(slots)[:-1])
         drive = data.drive.copy()
@@ -70,7 +75,10 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
             sensor_state=data.sensor_state.copy(),
             status=np.zeros(3, dtype=np.int64),
         )
-        shifted = model._replace(reference=_shifted(model.reference, offset))
+        shifted = model._replace(
+            reference=_shifted(model.reference, offset),
+            rod_load=_shifted(model.rod_load, force),
+        )
         run_ticks(k0, k0 + 1, shifted, trial, *laws)
         return np.concatenate([trial.x[states], *trial.slot_states, trial.drive[[D_UD, D_UQ]]])
 
@@ -83,13 +91,11 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
     names += ["vd_applied", "vq_applied"]
     steps = np.concatenate([steps_for(data.x, states), np.full(len(base) - len(states), 1e-6)])
     a = difference(tick, base, steps, names, names)
-    b = difference(
-        lambda r: tick(base, r[0]),
-        np.zeros(1),
-        np.array([REFERENCE_STEP[position]]),
-        ["reference"],
-        names,
-    )
+    if load:  # N, positive opposing extension (the right-hand side is affine in it)
+        column, step, label = (lambda f: tick(base, force=f[0])), ROD_FORCE_STEP_N, "rod_force_N"
+    else:
+        column, step, label = (lambda r: tick(base, r[0])), REFERENCE_STEP[position], "reference"
+    b = difference(column, np.zeros(1), np.array([step]), [label], names)
     c = np.zeros((1, len(base)))
     c[0, : len(states)] = difference(
         lambda z: readings(setup, p, with_states(data.x, states, z)),
@@ -114,7 +120,7 @@ def tick_map(scenario: Scenario, setup, p, x0, at_s) -> control.StateSpace:
         c[:, keep],
         0,
         dt=setup.sample_period_s,
-        inputs=[labels[0]],
+        inputs=["rod_force_N" if load else labels[0]],
         outputs=[labels[1]],
         states=[names[i] for i in keep],
         name=f"{scenario.name}-discrete",

@@ -65,8 +65,11 @@ L / (1 + L) and ``control.stability_margins(L)`` gives its margins), or "plant" 
 runs it: the Jacobian of one tick of the compiled loop (emasim.sim.engine.run_ticks: the laws
 as compiled, the computation delay, the RK4 sub-steps) in the plant's moving states, the
 slots' states and the voltage still applied during the delay, and in the reference's value
-(emasim.discrete_loop.tick_map). The reference's rates are not an input of that map, so a
-loop with a feed-forward is refused there.
+or (``input="rod_force_N"``) a rod force held over the tick, the reference held
+(emasim.discrete_loop.tick_map); its output is the reading the outermost loop closes on. The
+reference's rates are not an input of that map, so from the reference a loop with a
+feed-forward is refused there; from the rod force the reference is held and its rates are
+zero, so the feed-forwards are no part of the small signal.
 
 Not modelled: the current, speed and voltage limits and anti-windup (none acts on a small
 signal at an operating point inside them), sensor imperfections (ideal, sampled at every
@@ -139,10 +142,11 @@ def linearize(
     kind : "closed", "open" or "plant".
     broken_at : where kind="open" cuts: "position" or "speed" (the inner loop, the outer one
         closed); default the outermost feedback.
-    discrete : the closed loop at the control rate instead (emasim.discrete_loop).
+    discrete : the closed loop at the control rate instead (emasim.discrete_loop), from the
+        reference or the rod force (``input``), to the outermost loop's reading.
     input : the closed loop's input: "reference" (the position or speed reference) or
         "rod_force_N" (a rod force, N, positive opposing extension, the references held: the
-        loop's compliance x/F for the position output).
+        loop's compliance x/F for the position output; held over each tick if discrete).
     output : the closed loop's output, one of the plant's readings: "id_A", "iq_A",
         "motor_speed_rad_s" or (in a position loop) "measured_position_m"; default the one
         the outermost loop closes on.
@@ -175,7 +179,7 @@ def linearize(
         cuts = "speed or position" if scenario.controllers.position else "speed (no position loop)"
         raise InputError(f"linearize: broken_at must be {cuts}, got {broken_at!r}")
     if discrete:
-        _refuse_discrete(scenario, kind)
+        _refuse_discrete(scenario, kind, input)
     setup = scenario.setup()
     p = small_signal_plant(setup.plant, gaps, friction)
     position = scenario.controllers.position is not None
@@ -190,7 +194,7 @@ def linearize(
     if scenario.plant.linkage is not None:
         check_hinges_loaded(setup, p, x0, u0, t0)
     if discrete:
-        return tick_map(scenario, setup, p, x0, at_s)
+        return tick_map(scenario, setup, p, x0, at_s, load=input == "rod_force_N")
     plant = plant_model(setup, p, x0, u0, t0, position)
     if kind == "plant":
         return plant
@@ -305,19 +309,26 @@ def _refuse_ports(scenario, kind: str, discrete: bool, input: str, output: str |
     if output is not None and output not in outputs:
         raise InputError(f"linearize: output must be one of {', '.join(outputs)}, got {output!r}")
     chosen = input != "reference" or output is not None
-    if chosen and (kind != "closed" or discrete):
-        what = "discrete=True" if discrete else f"kind={kind!r}"
+    if chosen and kind != "closed":
         raise InputError(
-            f"linearize: input and output choose the continuous closed loop's ports; "
-            f"{what} has its own (leave them out)"
+            f"linearize: input and output choose the closed loop's ports; kind={kind!r} has "
+            "its own (leave them out)"
+        )
+    if discrete and output is not None:
+        raise InputError(
+            "linearize: discrete=True gives the reading the outermost loop closes on; leave "
+            "output out (input may be reference or rod_force_N)"
         )
 
 
-def _refuse_discrete(scenario: Scenario, kind: str) -> None:
+def _refuse_discrete(scenario: Scenario, kind: str, input: str) -> None:
     """InputError for what the tick's Jacobian does not give: another loop than the closed
-    one, and a feed-forward, which reads the reference's rates (not an input of the map)."""
+    one, and from the reference a feed-forward, which reads the reference's rates (not an
+    input of the map; from the rod force the reference is held, its rates zero)."""
     if kind != "closed":
         raise InputError(f"linearize: discrete=True gives the closed loop only, got kind={kind!r}")
+    if input == "rod_force_N":
+        return
     facts, ts = plant_facts(scenario.plant), scenario.solver.sample_period_s
     c = scenario.controllers
     laws = [("speed", c.speed)] + ([("position", c.position)] if c.position else [])
