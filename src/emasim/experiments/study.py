@@ -10,7 +10,8 @@ plants (paired). Its folder holds
 * ``runs/<run_id>/``: one folder per finished run, written by the worker the moment the run
   ends, atomically: ``scenario.toml`` (run it again with ``emasim run``), ``metrics.json``,
   ``meta.json`` (with ``study``: run id, label, sample, values) and, with ``traces``,
-  ``result.parquet``;
+  ``result.parquet`` (without, a run records only what its metrics read, and its
+  ``scenario.toml`` says so: ``solver.record_signals = []``);
 * ``metrics.parquet``: one row per finished run: ``run_id``, ``label``, ``sample``, ``status``
   ('ok', 'diverged: ...' or 'failed: ...', a run that failed for any other reason: a rule
   checked only as it ran, a folder that could not be written), each variation's value (the
@@ -263,8 +264,9 @@ def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False)
     replace = os.path.lexists(folder)  # failed or damaged: write_folder refuses what is not ours
     record = {"run_id": job.run_id, "label": job.label, "sample": job.sample}
     record["values"] = job.values
+    scenario = job.scenario if traces else metrics_only(job.scenario)
     try:
-        result = run_scenario(job.scenario, trust_fmu=trust_fmu, label=job.label)
+        result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
         result.meta["study"] = record
         write = lambda tmp: result.write_files(tmp, plot=False, traces=traces)  # noqa: E731
         write_folder(folder, write, force=replace)
@@ -277,6 +279,14 @@ def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False)
     with contextlib.suppress(Exception):  # a folder that cannot be written: the row says why
         _write_failed(folder, job, record, status, replace)
     return _row(record, status, {})
+
+
+def metrics_only(scenario):
+    """``scenario`` recording only what its metrics read (solver.record_signals empty): a run
+    whose traces are not kept holds none of the others in memory either."""
+    return scenario.model_copy(
+        update={"solver": scenario.solver.model_copy(update={"record_signals": []})}
+    )
 
 
 def one_line(err: BaseException, limit: int = 300) -> str:
