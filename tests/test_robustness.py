@@ -47,7 +47,7 @@ def test_the_uncertainty_spans_the_stated_ranges_around_the_nominal_plant():
     # paired: sample k is the same plant for both sets
     by_sample = {}
     for job in jobs:
-        by_sample.setdefault(job.sample, []).append(job.scenario.plant)
+        by_sample.setdefault(job.tags["sample"], []).append(job.scenario.plant)
     assert all(all(p == plants[0] for p in plants) for plants in by_sample.values())
 
 

@@ -25,8 +25,10 @@ from emasim.experiments.study import (
     plan_study,
     read_table,
     run_and_write,
+    run_id_of,
     run_study,
     summarize_by,
+    varied,
 )
 from emasim.experiments.variation import parse_variation, samples
 from emasim.output import OutputError, foreign_files
@@ -161,7 +163,7 @@ def test_a_star_scales_every_key_by_the_same_factor_of_its_own_value():
     plan = plan_study(spec)
     nominal = load_scenario("speed-step", controllers=["speed=pi"]).plant.friction
     for job in plan.jobs:
-        factor = job.values["plant.friction.coulomb_Nm,plant.friction.static_Nm"]
+        factor = job.tags["plant.friction.coulomb_Nm,plant.friction.static_Nm"]
         friction = job.scenario.plant.friction
         assert friction.coulomb_Nm == pytest.approx(factor * nominal.coulomb_Nm)
         assert friction.static_Nm == pytest.approx(factor * nominal.static_Nm)
@@ -180,7 +182,7 @@ def test_zipped_values_scale_each_key_by_its_own_factor():
     assert second.scenario.plant.friction.coulomb_Nm == pytest.approx(
         1.5 * nominal.friction.coulomb_Nm
     )
-    assert [job.values for job in (first, second)] == [
+    assert [varied(job) for job in (first, second)] == [
         {"plant.backlash.width_mm,plant.friction.coulomb_Nm": 0},
         {"plant.backlash.width_mm,plant.friction.coulomb_Nm": 1},
     ]
@@ -247,16 +249,16 @@ def test_every_run_equals_its_scenario_run_alone(tmp_path, client):
     assert by_label["PI"][values].equals(by_label["SMC"][values])
     for job in plan_study(spec).jobs[::3]:
         alone = run_scenario(job.scenario, label=job.label).metrics
-        row = table[table["run_id"] == job.run_id].iloc[0]
+        row = table[table["run_id"] == run_id_of(job)].iloc[0]
         assert {k: row[k] for k in alone} == pytest.approx(alone, nan_ok=True)
-        again = load_scenario(str(tmp_path / "s" / RUNS_FOLDER / job.run_id / "scenario.toml"))
-        assert again.plant.backlash.width_mm == job.values["plant.backlash.width_mm"]
+        again = load_scenario(str(tmp_path / "s" / RUNS_FOLDER / run_id_of(job) / "scenario.toml"))
+        assert again.plant.backlash.width_mm == job.tags["plant.backlash.width_mm"]
     summary = json.loads((tmp_path / "s" / "summary" / "summary.json").read_text())
     rise = table[table["label"] == "SMC"]["rise_time_s"]
     assert summary["metrics"]["SMC"]["rise_time_s"]["p50"] == pytest.approx(rise.median())
     assert (tmp_path / "s" / "summary" / "distributions.png").stat().st_size > 0
     assert foreign_files(tmp_path / "s" / "summary") == []
-    assert foreign_files(tmp_path / "s" / RUNS_FOLDER / plan_study(spec).jobs[0].run_id) == []
+    assert foreign_files(tmp_path / "s" / RUNS_FOLDER / run_id_of(plan_study(spec).jobs[0])) == []
 
 
 def test_a_study_resumes_with_only_the_runs_it_lacks(tmp_path, client):
@@ -293,14 +295,14 @@ def test_a_task_run_again_reads_the_runs_it_finished_before(tmp_path, client, mo
     spec = StudySpec("speed-step", vary=("seed=1,2",), labels=("PI",), settings=SHORT)
     study = run_study(spec, tmp_path / "s", client=client)
     job = plan_study(spec).jobs[0]
-    folder = tmp_path / "s" / RUNS_FOLDER / job.run_id
+    folder = tmp_path / "s" / RUNS_FOLDER / run_id_of(job)
 
     def no_run(*args, **kwargs):
         raise AssertionError("a finished run was simulated again")
 
     monkeypatch.setattr(runs, "run_scenario", no_run)
     row = run_and_write(job, folder, traces=False)
-    assert row == finished_rows(tmp_path / "s")[job.run_id]
+    assert row == finished_rows(tmp_path / "s")[run_id_of(job)]
     assert row["steady_error_rms_rpm"] == study.table.iloc[0]["steady_error_rms_rpm"]
 
 

@@ -156,7 +156,7 @@ def test_the_seed_draws_other_plants_into_another_folder(monkeypatch, tmp_path):
     default = robustness.spec_for("bench-step", 3)
     other = robustness.spec_for("bench-step", 3, seed=7)
     assert default.seed == robustness.DEFAULT_SEED == 0 and other.seed == 7
-    a, b = (plan_study(s).jobs[0].values for s in (default, other))
+    a, b = (plan_study(s).jobs[0].tags for s in (default, other))
     assert a["plant.backlash.width_mm"] != b["plant.backlash.width_mm"]
     assert robustness.study_folder("bench-step", 3, tmp_path) != robustness.study_folder(
         "bench-step", 3, tmp_path, seed=7

@@ -10,8 +10,10 @@ finishes, and returns them in order. Results do not depend on the schedule: numb
 generator is per thread and seeded at the start of each run.
 
 A facility's runs are :class:`Job` records (a single-set scenario, its label, and tags naming
-where its result belongs: the experiment, the stage, the clearance, the component), run by
-:func:`run_jobs`; their results are read back by those names, never by position in a tuple.
+where its result belongs: the experiment, the stage, the clearance, the component; a study's
+run id, sample and varied values), run by :func:`run_jobs` (a study's by
+emasim.experiments.study.run_study); their results are read back by those names, never by
+position in a tuple.
 """
 
 import asyncio

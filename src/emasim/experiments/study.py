@@ -53,6 +53,7 @@ from ..jsonio import json_text
 from ..naming import slug
 from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
 from ..scenarios.loader import apply_setting, read_scenario_file, set_key, validate_scenario
+from .batch import Job
 from .variation import Variation, parse_variation, samples
 
 STUDY_FILE = "study.json"
@@ -99,15 +100,17 @@ class StudySpec:
         }
 
 
-@dataclass(frozen=True)
-class Job:
-    """One run of a study: its id, controller set, sample and validated scenario."""
+RUN_ID, SAMPLE = "run_id", "sample"  # a study job's tags, beside each variation's value
 
-    run_id: str
-    label: str
-    sample: int
-    values: dict
-    scenario: object
+
+def run_id_of(job: Job) -> str:
+    """A study job's run id (its run folder's name): ``<label>-<sample>``."""
+    return job.tags[RUN_ID]
+
+
+def varied(job: Job) -> dict:
+    """A study job's value of each variation (the factor for a '*' one), by its name."""
+    return {k: v for k, v in job.tags.items() if k not in (RUN_ID, SAMPLE)}
 
 
 @dataclass
@@ -168,7 +171,7 @@ def plan_study(spec: StudySpec) -> Plan:
             scenario = sample_scenario(variants[label], resolved, variations, point.values, source)
             run_id = f"{slug(label)}-{point.index:05d}"
             columns = {v.name: v.column(point.values[v.name]) for v in variations}
-            jobs.append(Job(run_id, label, point.index, columns, scenario))
+            jobs.append(Job(scenario, label, {RUN_ID: run_id, SAMPLE: point.index, **columns}))
     digest = hashlib.sha256()
     for job in jobs:
         text = json.dumps(job.scenario.model_dump(mode="json"), sort_keys=True)
@@ -259,11 +262,11 @@ def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False)
     from .runs import run_scenario
 
     finished = _finished_row(folder)
-    if finished is not None and finished["run_id"] == job.run_id and not is_failed(finished):
+    if finished is not None and finished["run_id"] == run_id_of(job) and not is_failed(finished):
         return finished
     replace = os.path.lexists(folder)  # failed or damaged: write_folder refuses what is not ours
-    record = {"run_id": job.run_id, "label": job.label, "sample": job.sample}
-    record["values"] = job.values
+    record = {"run_id": run_id_of(job), "label": job.label, "sample": job.tags[SAMPLE]}
+    record["values"] = varied(job)
     scenario = job.scenario if traces else metrics_only(job.scenario)
     try:
         result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
@@ -275,7 +278,7 @@ def run_and_write(job: Job, folder: Path, traces: bool, trust_fmu: bool = False)
         status = f"{DIVERGED}: {one_line(err)}"
     except Exception as err:  # any other failure is this run's, not the study's
         status = f"{FAILED}: {reason(err)}"
-        logging.getLogger(FAILURE_LOG).error(f"{job.run_id} {status}\n{traceback.format_exc()}")
+        logging.getLogger(FAILURE_LOG).error(f"{run_id_of(job)} {status}\n{traceback.format_exc()}")
     with contextlib.suppress(Exception):  # a folder that cannot be written: the row says why
         _write_failed(folder, job, record, status, replace)
     return _row(record, status, {})
@@ -394,10 +397,10 @@ def run_study(
     open_folder(folder, plan)
     with _holding(folder):
         rows = finished_rows(folder)
-        known = {job.run_id for job in plan.jobs}
+        known = {run_id_of(job) for job in plan.jobs}
         rows = {run_id: row for run_id, row in rows.items() if run_id in known}
         rows = {run_id: row for run_id, row in rows.items() if not is_failed(row)}
-        pending = [job for job in plan.jobs if job.run_id not in rows]
+        pending = [job for job in plan.jobs if run_id_of(job) not in rows]
         total = len(plan.jobs)
         if progress is not None:
             progress(len(rows), total)
@@ -415,7 +418,7 @@ def run_study(
 
         if pending:
             jobs = [
-                (job, (folder / RUNS_FOLDER / job.run_id).absolute(), spec.traces, trust_fmu)
+                (job, (folder / RUNS_FOLDER / run_id_of(job)).absolute(), spec.traces, trust_fmu)
                 for job in pending
             ]
             with (
@@ -489,7 +492,7 @@ def as_frame(rows: dict[str, dict], plan: Plan):
     """The rows as a DataFrame in the plan's order, one column per key (missing: NaN)."""
     import pandas as pd
 
-    order = {job.run_id: i for i, job in enumerate(plan.jobs)}
+    order = {run_id_of(job): i for i, job in enumerate(plan.jobs)}
     ordered = sorted(rows.values(), key=lambda row: order[row["run_id"]])
     return pd.DataFrame(ordered, columns=_columns(ordered, plan))
 
