@@ -68,7 +68,7 @@ def test_threshold_and_hysteresis_are_backlash_plus_friction_lost_motion():
     )
     battery = ac.Battery()
     drive = ac.Drive.of(scenario)
-    measured = ac.measure_triangle(*ac.triangle_job(scenario, drive, battery)[1:])
+    measured = ac.measure(ac.triangle_job(scenario, drive, battery), drive, battery)
 
     p = scenario.plant
     k, kt = p.ratio_m_per_rad, p.torque_constant_Nm_per_A
@@ -129,8 +129,9 @@ def test_backlash_in_the_loop_matches_the_describing_function(
     gap_mm = 0.1
     scenario = play_loop(gap_mm)
     battery = ac.Battery()
-    job = ac.sine_job(scenario, ac.Drive.of(scenario), battery, frequency_Hz, amplitude_mm * 1e-3)
-    simulated = ac.measure_sine(*job[1:])["responses"]["position"]
+    drive = ac.Drive.of(scenario)
+    job = ac.sine_job(scenario, drive, battery, frequency_Hz, amplitude_mm * 1e-3)
+    simulated = ac.measure(job, drive, battery)["responses"]["position"]
     w = 2 * math.pi * frequency_Hz
     t0 = complex(control.frequency_response(linearize(play_loop(0.0)), [w]).complex.squeeze())
     predicted = describing_function_prediction(t0, amplitude_mm * 1e-3, gap_mm * 1e-3)

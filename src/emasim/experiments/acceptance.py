@@ -68,6 +68,7 @@ from ..errors import InputError
 from ..linear import linearize
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
+from .batch import Job
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -243,7 +244,7 @@ def sine_job(base, drive, battery, frequency_Hz, amplitude_m, force_N=0.0):
     else:
         command = [{"type": "sine", "amplitude": amplitude_m / MM, "frequency_Hz": frequency_Hz}]
         force = None
-    return ("sine", battery_scenario(base, settle + window, command, force), drive, battery)
+    return _job("sine", battery_scenario(base, settle + window, command, force))
 
 
 def measure_sine(scenario, drive, battery) -> dict:
@@ -285,7 +286,7 @@ def chirp_job(base, drive, battery, amplitude_m, force_N=0.0):
     else:
         command, force = [sweep | {"amplitude": amplitude_m / MM}], None
     duration = start + battery.chirp_s + battery.settle_s
-    return ("chirp", battery_scenario(base, duration, command, force), drive, battery)
+    return _job("chirp", battery_scenario(base, duration, command, force))
 
 
 def measure_chirp(scenario, drive, battery) -> dict:
@@ -315,7 +316,7 @@ def triangle_job(base, drive, battery):
     times = [0.0, hold, *(hold + quarter * (2 * k + 1) for k in range(n // 2)), hold + quarter * n]
     values = [0.0, 0.0, *(a if k % 2 == 0 else -a for k in range(n // 2)), 0.0]
     command = [{"type": "table", "time_s": times, "values": values}]
-    return ("triangle", battery_scenario(base, times[-1], command), drive, battery)
+    return _job("triangle", battery_scenario(base, times[-1], command))
 
 
 def measure_triangle(scenario, drive, battery) -> dict:
@@ -366,7 +367,7 @@ def load_step_job(base, drive, battery):
     step = [{"type": "step", "time_s": battery.settle_s, "final": force}]
     command = [{"type": "constant", "value": 0.0}]
     duration = battery.settle_s + battery.load_hold_s
-    return ("load_step", battery_scenario(base, duration, command, step), drive, battery)
+    return _job("load_step", battery_scenario(base, duration, command, step))
 
 
 def measure_load_step(scenario, drive, battery) -> dict:
@@ -403,7 +404,7 @@ def rate_job(base, drive, battery, load_N):
     force = [{"type": "constant", "value": load_N}] if load_N else None
     duration = start + 3.0 * travel * MM / drive.max_rate_m_s + battery.settle_s
     scenario = battery_scenario(base, duration, command, force, no_standing_load=not load_N)
-    return ("rate", scenario, drive, battery)
+    return _job("rate", scenario)
 
 
 def measure_rate(scenario, drive, battery) -> dict:
@@ -427,7 +428,7 @@ def stall_job(base, drive, battery):
     end = start + 1.5 / battery.stall_ramp_per_s
     ramp = [{"type": "ramp", "slope_per_s": slope, "start_s": start, "end_s": end}]
     command = [{"type": "constant", "value": 0.0}]
-    return ("stall", battery_scenario(base, end, command, ramp), drive, battery)
+    return _job("stall", battery_scenario(base, end, command, ramp))
 
 
 STALL_CHUNK_S = 0.01
@@ -471,8 +472,18 @@ MEASURES = {
 }
 
 
-def _measure(kind, scenario, drive, battery):
-    return MEASURES[kind](scenario, drive, battery)
+MEASURE = "measure"  # a battery job's tag: which of MEASURES reads its run
+POINT = "point"  # ... and what it measures, ("small", f), ("triangle",), ...
+
+
+def _job(kind: str, scenario: Scenario) -> Job:
+    """A battery run: its scenario, tagged with the MEASURES entry that reads it."""
+    return Job(scenario, tags={MEASURE: kind})
+
+
+def measure(job: Job, drive: "Drive", battery: "Battery") -> dict:
+    """Run a battery job and read it (its MEASURES entry)."""
+    return MEASURES[job.tags[MEASURE]](job.scenario, drive, battery)
 
 
 # --- the battery ----------------------------------------------------------------------------
@@ -613,8 +624,9 @@ def output_description(scenario: Scenario) -> str:
     return f"the rod position ({feedback} feedback)"
 
 
-def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, tuple]]:
-    """(tag, job) of every run of one controller set."""
+def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, Job]]:
+    """(point, job) of every run of one controller set: the point names what the run measures
+    (("small", f), ("triangle",), ...)."""
     drive = Drive.of(variant)
     small, large = (
         battery.small_amplitude * drive.stroke_m,
@@ -707,27 +719,34 @@ def run_acceptance(
     check_acceptance(scenario, labels)
     variants = dict(scenario.variants())
     chosen = list(labels or variants)
-    tagged = [
-        (label, tag, job) for label in chosen for tag, job in plan_battery(variants[label], battery)
+    drives = {label: Drive.of(variants[label]) for label in chosen}
+    jobs = [
+        Job(job.scenario, label, {**job.tags, POINT: point})
+        for label in chosen
+        for point, job in plan_battery(variants[label], battery)
     ]
     done = [0]
 
     def on_done(_, __):
         done[0] += 1
         if progress is not None:
-            progress(done[0], len(tagged))
+            progress(done[0], len(jobs))
 
     start = time.perf_counter()
-    jobs = [job for _, _, job in tagged]
+    calls = [(job, drives[job.label], battery) for job in jobs]
     if client is None:
         with dask_client(processes=False) as local:
-            values = map_runs(_measure, jobs, local, on_done)
+            values = map_runs(measure, calls, local, on_done)
     else:
-        values = map_runs(_measure, jobs, client, on_done)
+        values = map_runs(measure, calls, client, on_done)
     wall = time.perf_counter() - start
     figures, curves, linear = {}, {}, {}
     for label in chosen:
-        measured = {tag: v for (lb, tag, _), v in zip(tagged, values, strict=True) if lb == label}
+        measured = {
+            job.tags[POINT]: value
+            for job, value in zip(jobs, values, strict=True)
+            if job.label == label
+        }
         figures[label], curves[label] = summarize(measured, Drive.of(variants[label]), battery)
         models, linear[label] = linear_responses(variants[label], battery)
         curves[label]["responses"] += models
@@ -735,8 +754,8 @@ def run_acceptance(
 
     meta = meta_of(scenario, wall)
     meta.update(
-        runs=len(tagged),
-        simulated_s=sum(job[1].duration_s for job in jobs),
+        runs=len(jobs),
+        simulated_s=sum(job.scenario.duration_s for job in jobs),
         output=output_description(scenario),
         linear_model=linear,
     )
