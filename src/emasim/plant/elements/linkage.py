@@ -135,15 +135,11 @@ LINKAGE_COLUMNS = (
     *(Quantity(f"hinge{h}_force_N", "N", f"normal force at hinge {h}") for h in (1, 2, 3, 4)),
     *(Quantity(f"hinge{h}_penetration_m", "m", f"penetration at hinge {h}") for h in (1, 2, 3, 4)),
 )
-# generalised forces gathered over the hinges: linkage_rhs sums them in the rows of dy that
-# then receive the accelerations they drive (the rate rows N_POS + PHI .. N_POS + TD), so that
-# the right-hand side allocates nothing; the axial force on the rod is returned
-G_TAU_A0 = N_POS + PHI  # torque about the actuator pivot A0, N m
-G_FX_B, G_FY_B = N_POS + XB, N_POS + YB  # force on the rocker B, N
-G_M_B = N_POS + TB  # moment on B about its origin, N m
-G_FX_C, G_FY_C = N_POS + XC, N_POS + YC  # force on the link C, N
-G_M_C = N_POS + TC  # moment on C about its centre, N m
-G_M_D = N_POS + TD  # moment on the rocker arm D about O, N m
+# generalised forces gathered over the hinges, a tuple indexed by the body states PHI .. TD:
+# the torque about the actuator pivot A0 (N m), the force (N) and moment (N m, about its
+# origin) on the rocker B, on the link C (about its centre), the moment on the rocker arm D
+# about O (N m). A tuple of locals, not rows of dy: the processor keeps them in registers, and
+# each is summed in the order of the hinges as before
 
 # bodies
 GROUND, ROD, BODY_B, BODY_C, BODY_D = range(5)
@@ -152,7 +148,7 @@ N_HINGES = 4
 H1, H2, H3, H4 = range(4)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _local_point(hinge, on_pin, q):
     """Body-frame coordinates of a hinge's pin (on_pin) or hole on its body."""
     if hinge == H1:
@@ -164,7 +160,7 @@ def _local_point(hinge, on_pin, q):
     return (0.0, 0.5 * q[LC]) if on_pin else (q[R4], 0.0)  # H4 pin: C; hole: D
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _hinge_bodies(hinge):
     """(pin body, hole body) of a hinge."""
     if hinge == H1:
@@ -180,7 +176,7 @@ def _hinge_bodies(hinge):
 F_RX, F_RY, F_VX, F_VY, F_COS, F_SIN, F_OMEGA = range(7)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _frames(y, s, s_dot, q):
     """Frame of every body, one tuple each: reference point, its velocity, cos and sin of the
     orientation, angular rate. The rod's frame sits at the rod end, turning with phi; the
@@ -224,7 +220,7 @@ def _velocity_at(f, body, px, py):
     return frame[F_VX] - w * (py - frame[F_RY]), frame[F_VY] + w * (px - frame[F_RX])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def _contact(hinge, f, q):
     """Contact of one hinge from the body frames (see hinge_contact)."""
     pin_body, hole_body = _hinge_bodies(hinge)
@@ -257,31 +253,41 @@ def hinge_contact(hinge, y, s, s_dot, q):
     return _contact(hinge, _frames(y, s, s_dot, q), q)
 
 
-@njit(cache=True, error_model="numpy")
-def _apply(body, fx, fy, px, py, f, q, gen):
-    """Add a force at a point to the generalised forces of a body; return its push along the
-    rod axis (N), which only the rod feels.
-
-    gen: indexed by the G_* constants (torque about A0, forces and moments on B and C,
-    moment on D)."""
+@njit(cache=True, inline="always", error_model="numpy")
+def _apply(body, fx, fy, px, py, f, q, g):
+    """The generalised forces g (see above) with a force at a point added to those of a body,
+    and its push along the rod axis (N), which only the rod feels."""
+    tau, fx_b, fy_b, m_b, fx_c, fy_c, m_c, m_d = g
     if body == GROUND:
-        return 0.0
+        return g, 0.0
     if body == ROD:
-        gen[G_TAU_A0] += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
-        return f[ROD][F_COS] * fx + f[ROD][F_SIN] * fy
+        tau += (px - q[A0X]) * fy - (py - q[A0Y]) * fx
+        return (tau, fx_b, fy_b, m_b, fx_c, fy_c, m_c, m_d), f[ROD][F_COS] * fx + f[ROD][F_SIN] * fy
     frame = f[body]
     moment = (px - frame[F_RX]) * fy - (py - frame[F_RY]) * fx
     if body == BODY_B:
-        gen[G_FX_B] += fx
-        gen[G_FY_B] += fy
-        gen[G_M_B] += moment
-    elif body == BODY_C:
-        gen[G_FX_C] += fx
-        gen[G_FY_C] += fy
-        gen[G_M_C] += moment
-    else:
-        gen[G_M_D] += moment
-    return 0.0
+        return (tau, fx_b + fx, fy_b + fy, m_b + moment, fx_c, fy_c, m_c, m_d), 0.0
+    if body == BODY_C:
+        return (tau, fx_b, fy_b, m_b, fx_c + fx, fy_c + fy, m_c + moment, m_d), 0.0
+    return (tau, fx_b, fy_b, m_b, fx_c, fy_c, m_c, m_d + moment), 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _hinge(h, f, q, hinges, g, axial):
+    """Hinge h's contact: its penetration and normal force into ``hinges``; return the
+    generalised forces g with its force on its two bodies added, and ``axial`` plus its push
+    along the rod axis (N), the pin's part added first, then the hole's."""
+    fx, fy, px, py, delta, fn = _contact(h, f, q)
+    hinges[h, 0] = delta
+    hinges[h, 1] = fn
+    if fn == 0.0:
+        return g, axial
+    pin_body, hole_body = _hinge_bodies(h)
+    g, push = _apply(pin_body, fx, fy, px, py, f, q, g)
+    axial += push
+    g, push = _apply(hole_body, -fx, -fy, px, py, f, q, g)
+    axial += push
+    return g, axial
 
 
 @njit(cache=True, error_model="numpy")
@@ -290,34 +296,30 @@ def linkage_rhs(y, s, s_dot, rudder_torque, q, dy, hinges):
 
     y: the 16 linkage states; s, s_dot: rod extension (m) and rate; rudder_torque: external
     torque on the rudder shaft (N m); q: linkage parameters. ``hinges`` (4 x 2) receives each
-    hinge's penetration (m) and normal force (N).
+    hinge's penetration (m) and normal force (N). The hinges come one by one, each inlined
+    with its bodies known: no call and no branch on the hinge, and the four contacts overlap
+    in the processor (a loop over them calling the contact took twice the time).
     """
     f = _frames(y, s, s_dot, q)
-    for i in range(N_POS):
-        dy[i] = y[N_POS + i]
-        dy[N_POS + i] = 0.0  # the generalised forces G_* are summed here
-    axial = 0.0
-    for h in range(N_HINGES):
-        fx, fy, px, py, delta, fn = _contact(h, f, q)
-        hinges[h, 0] = delta
-        hinges[h, 1] = fn
-        if fn == 0.0:
-            continue
-        pin_body, hole_body = _hinge_bodies(h)
-        axial += _apply(pin_body, fx, fy, px, py, f, q, dy)
-        axial += _apply(hole_body, -fx, -fy, px, py, f, q, dy)
+    g = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    g, axial = _hinge(H1, f, q, hinges, g, 0.0)
+    g, axial = _hinge(H2, f, q, hinges, g, axial)
+    g, axial = _hinge(H3, f, q, hinges, g, axial)
+    g, axial = _hinge(H4, f, q, hinges, g, axial)
+    tau, fx_b, fy_b, m_b, fx_c, fy_c, m_c, m_d = g
     v = y[N_POS:]
     r = q[L0] + s
-    dy[N_POS + PHI] = (dy[G_TAU_A0] - 2.0 * q[MASS_ROD] * r * s_dot * v[PHI]) / (
-        q[I_E] + q[MASS_ROD] * r * r
-    )
-    dy[N_POS + XB] = dy[G_FX_B] / q[MASS_B]
-    dy[N_POS + YB] = dy[G_FY_B] / q[MASS_B]
-    dy[N_POS + TB] = dy[G_M_B] / q[I_B]
-    dy[N_POS + XC] = dy[G_FX_C] / q[MASS_C]
-    dy[N_POS + YC] = dy[G_FY_C] / q[MASS_C]
-    dy[N_POS + TC] = dy[G_M_C] / q[I_C]
-    dy[N_POS + TD] = (dy[G_M_D] - q[C_D] * v[TD] + rudder_torque) / q[J_D]
+    phi_dd = (tau - 2.0 * q[MASS_ROD] * r * s_dot * v[PHI]) / (q[I_E] + q[MASS_ROD] * r * r)
+    for i in range(N_POS):
+        dy[i] = v[i]
+    dy[N_POS + PHI] = phi_dd
+    dy[N_POS + XB] = fx_b / q[MASS_B]
+    dy[N_POS + YB] = fy_b / q[MASS_B]
+    dy[N_POS + TB] = m_b / q[I_B]
+    dy[N_POS + XC] = fx_c / q[MASS_C]
+    dy[N_POS + YC] = fy_c / q[MASS_C]
+    dy[N_POS + TC] = m_c / q[I_C]
+    dy[N_POS + TD] = (m_d - q[C_D] * v[TD] + rudder_torque) / q[J_D]
     return axial
 
 
