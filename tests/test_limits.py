@@ -2,12 +2,13 @@
 above the drive's limit, the current above the limit in force, the rod past its stroke on a
 plant without end stops; each a warning line and a ``limits`` entry in meta.json."""
 
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
-from test_report_metrics import FakeResult
+from test_report_metrics import FakeResult, step_scenario
 from typer.testing import CliRunner
 
 from emasim.analysis.report import LIMIT_TOLERANCE, limit_warnings, limits_crossed
@@ -16,13 +17,16 @@ from emasim.experiments.runs import run_scenario
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.result import Result
 
-PLANT = {"motor": {"max_speed_rpm": 3000.0}, "drivetrain": {"stroke_mm": 250.0}}
+# a motor stand's: its speed limit and stroke, no end stops
+PLANT = dataclasses.replace(
+    step_scenario("speed_rpm", 1000.0), max_speed_rpm=3000.0, stroke_mm=250.0
+)
 RPM = math.pi / 30.0
 
 
-def fake(plant: dict, **columns) -> FakeResult:
+def fake(experiment, **columns) -> FakeResult:
     t = np.linspace(0.0, 1.0, 11)
-    return FakeResult(t, {"plant": plant}, **columns)
+    return FakeResult(t, experiment, **columns)
 
 
 def test_each_limit_crossed_is_found_with_its_peak_and_when():
@@ -50,7 +54,7 @@ def test_each_limit_crossed_is_found_with_its_peak_and_when():
 
 def test_a_plant_with_end_stops_reports_their_contact_not_the_stroke():
     rod = np.full(11, 0.130)
-    with_stops = PLANT | {"end_stops": {"stiffness_N_per_m": 1e8}}
+    with_stops = dataclasses.replace(PLANT, stroke_mm=None)  # end stops hold the rod
     assert limits_crossed(fake(with_stops, actuator_position_m=rod)) == {}
     assert "rod_stroke" in limits_crossed(fake(PLANT, actuator_position_m=rod))
 

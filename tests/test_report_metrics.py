@@ -2,16 +2,21 @@
 known in closed form (first-order steps, exponential recoveries, sines of known gain and phase).
 
 The traces are written by hand into a minimal stand-in for a run result: ``t``, the columns
-by name and the scenario dict, which is all the report functions read.
+by name and the experiment it made (emasim.sim.result.Experiment), which is all the report
+functions read.
 """
 
+import dataclasses
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from emasim.analysis import report as r
 from emasim.interface import LIMIT_CURRENT, LIMIT_SPEED, LIMIT_VOLTAGE
+from emasim.scenarios.loader import load_scenario
+from emasim.sim.result import Experiment
 
 RPM = math.pi / 30.0  # rad/s per rpm
 DEG = math.pi / 180.0  # rad per deg
@@ -20,11 +25,11 @@ MAX_CURRENT_A = 58.0
 
 
 class FakeResult:
-    """What the report reads of a run: the time, the trace columns by name, the scenario."""
+    """What the report reads of a run: the time, the trace columns by name, the experiment."""
 
-    def __init__(self, t, scenario, **columns):
+    def __init__(self, t, experiment, **columns):
         self.t = np.asarray(t, dtype=float)
-        self.scenario = scenario
+        self.description = SimpleNamespace(experiment=experiment)
         self._columns = {name: np.asarray(v, dtype=float) for name, v in columns.items()}
 
     @property
@@ -33,7 +38,7 @@ class FakeResult:
 
     @property
     def outer_loop(self):
-        return "speed" if self.scenario["reference"].get("speed_rpm") else "position"
+        return "speed" if self.description.experiment.quantity == "speed" else "position"
 
     def __getitem__(self, name):
         return self._columns[name]
@@ -43,15 +48,27 @@ def grid(t_end, dt):
     return np.linspace(0.0, t_end, round(t_end / dt) + 1)
 
 
+QUANTITY = {"speed_rpm": "speed", "position_mm": "position", "rudder_deg": "rudder"}
+
+
+def experiment(key, term, t_load=None, arm_mm=None):
+    """The experiment of a reference of one term (a step or a sine) of ``key``, a load step at
+    ``t_load`` (None: none), the lumped stage's arm (None: the linkage); no stroke check."""
+    return Experiment(
+        quantity=QUANTITY[key],
+        shape=term["type"],
+        reference=(term,),
+        sine_frequency_Hz=term.get("frequency_Hz"),
+        load_step_s=t_load,
+        max_speed_rpm=1800.0,
+        max_current_A=MAX_CURRENT_A,
+        stroke_mm=None,
+        rudder_arm_m=None if arm_mm is None else 1e-3 * arm_mm,
+    )
+
+
 def step_scenario(key, final, t_load=None):
-    scenario = {
-        "reference": {key: [{"type": "step", "time_s": 0.0, "final": final}]},
-        "plant": {"motor": {"max_current_A": MAX_CURRENT_A}},
-        "load": {},
-    }
-    if t_load is not None:
-        scenario["load"] = {"motor_torque_Nm": [{"type": "step", "time_s": t_load, "final": 10.0}]}
-    return scenario
+    return experiment(key, {"type": "step", "time_s": 0.0, "final": final}, t_load)
 
 
 def load_error(t, t_load, dip, tau, offset=0.0):
@@ -148,7 +165,8 @@ def test_speed_step_recovery_floor():
 
 def test_speed_step_without_a_load_step_in_the_run():
     result = speed_step_result(dip=50.0, tau_r=0.02)
-    result.scenario["load"]["motor_torque_Nm"][0]["time_s"] = 5.0  # after the end
+    after_the_end = dataclasses.replace(result.description.experiment, load_step_s=5.0)
+    result.description.experiment = after_the_end
     out = r.step_metrics(result, "speed")
     assert not any(key.startswith("load_") for key in out)
 
@@ -255,14 +273,8 @@ SINE_RUN = 3.0
 
 
 def sine_scenario(t_load=None):
-    scenario = {
-        "reference": {"speed_rpm": [{"type": "sine", "amplitude": 1000.0, "frequency_Hz": SINE_F}]},
-        "plant": {},
-        "load": {},
-    }
-    if t_load is not None:
-        scenario["load"] = {"motor_torque_Nm": [{"type": "step", "time_s": t_load, "final": 10.0}]}
-    return scenario
+    sine = {"type": "sine", "amplitude": 1000.0, "frequency_Hz": SINE_F}
+    return experiment("speed_rpm", sine, t_load)
 
 
 def test_speed_sine_gain_phase_and_max_error():
@@ -288,12 +300,8 @@ def test_a_position_sine_gets_the_position_sine_metrics_in_mm():
     gain, lag = 0.95, math.radians(5.0)
     ref = 5.0 * np.sin(w * t)
     y = gain * 5.0 * np.sin(w * t - lag)
-    scenario = {
-        "reference": {"position_mm": [{"type": "sine", "amplitude": 5.0, "frequency_Hz": SINE_F}]},
-        "plant": {},
-        "load": {},
-    }
-    result = FakeResult(t, scenario, actuator_position_m=1e-3 * y, position_ref_m=1e-3 * ref)
+    sine = experiment("position_mm", {"type": "sine", "amplitude": 5.0, "frequency_Hz": SINE_F})
+    result = FakeResult(t, sine, actuator_position_m=1e-3 * y, position_ref_m=1e-3 * ref)
     out = r.sine_metrics(result, "position")
     assert out["gain"] == pytest.approx(gain, rel=1e-9)
     assert out["phase_lag_deg"] == pytest.approx(5.0, rel=1e-9)
@@ -362,11 +370,8 @@ def bench_step_result(linkage=False, run=10.0):
     rate = 4.72 / BENCH_TAU * np.exp(-t / BENCH_TAU) + np.where(
         in_window, FLUCT_DEG_S * np.cos(phase), 0.0
     )
-    scenario = {
-        "reference": {"rudder_deg": [{"type": "step", "time_s": 0.0, "final": 4.72}]},
-        "plant": {"linkage": {"arms": 2} if linkage else None, "load": {"rudder_arm_mm": ARM_MM}},
-        "load": {},
-    }
+    step = {"type": "step", "time_s": 0.0, "final": 4.72}
+    scenario = experiment("rudder_deg", step, arm_mm=None if linkage else ARM_MM)
     columns = {"rudder_angle_rad": DEG * angle}
     if linkage:
         columns["linkage_rudder_rate_rad_s"] = DEG * rate
@@ -457,11 +462,8 @@ def bench_sine_result(reverse_deg, gain=0.98, run=22.0):
         -reverse_deg * np.pi / LAG_S * np.cos(np.pi * t / LAG_S),
     )
     rate = rate + np.where(t >= 2.0, FLUCT_DEG_S * np.cos(2 * np.pi * 2.0 * t), 0.0)
-    scenario = {
-        "reference": {"rudder_deg": [{"type": "sine", "amplitude": 19.0, "frequency_Hz": BENCH_F}]},
-        "plant": {"linkage": None, "load": {"rudder_arm_mm": ARM_MM}},
-        "load": {},
-    }
+    sine = {"type": "sine", "amplitude": 19.0, "frequency_Hz": BENCH_F}
+    scenario = experiment("rudder_deg", sine, arm_mm=ARM_MM)
     return FakeResult(
         t,
         scenario,
@@ -525,7 +527,7 @@ def test_limit_metrics_and_warnings():
     (line,) = r.run_warnings(out)
     assert "rod's end stops" in line and "0.025 s" in line and "5000 N" in line
     # a plant without stops or flags reports neither
-    assert r.limit_metrics(FakeResult(t, {})) == {}
+    assert r.limit_metrics(FakeResult(t, None)) == {}
     assert r.run_warnings({}) == []
 
 
@@ -559,16 +561,27 @@ def test_tuning_cost_is_on_the_reading_and_covers_the_steady_window():
     assert chatter == 0.0  # a constant current command
 
 
-def test_reference_kind_and_load_step_time():
-    assert r.reference_kind(step_scenario("speed_rpm", 1000.0)) == ("speed", "step")
-    assert r.reference_kind(step_scenario("position_mm", 120.0)) == ("position", "step")
-    assert r.reference_kind(sine_scenario()) == ("speed", "sine")
-    with pytest.raises(ValueError, match="no reference"):
-        r.reference_kind({"reference": {}})
-    assert r.load_step_time(step_scenario("speed_rpm", 1000.0, 0.4)) == 0.4
-    assert r.load_step_time(step_scenario("speed_rpm", 1000.0)) is None
-    empty_step = {"load": {"x": [{"type": "step", "time_s": 1.0, "initial": 2.0, "final": 2.0}]}}
-    assert r.load_step_time(empty_step) is None
+def test_a_scenario_states_its_experiment():
+    """What the metrics read of a scenario, from its typed fields: the shipped scenarios'
+    references, load steps, limits and arm (their TOML files give these figures)."""
+    speed = load_scenario("speed-step").experiment()
+    assert (speed.quantity, speed.shape, speed.load_step_s) == ("speed", "step", 0.4)
+    assert (speed.max_current_A, speed.max_speed_rpm, speed.stroke_mm) == (58.0, 3000.0, 250.0)
+    assert speed.rudder_arm_m == pytest.approx(1e-3 * ARM_MM, rel=1e-3)
+    sine = load_scenario("speed-sine").experiment()
+    assert (sine.quantity, sine.shape, sine.sine_frequency_Hz) == ("speed", "sine", 0.318)
+    position = load_scenario("position-step").experiment()
+    assert (position.quantity, position.shape, position.load_step_s) == ("position", "step", 3.0)
+    assert position.stroke_mm is None  # its end stops hold the rod
+    bench = load_scenario("bench-step").experiment()
+    assert (bench.quantity, bench.reference[0]["final"], bench.max_speed_rpm) == (
+        "rudder",
+        4.72,
+        1800.0,
+    )
+    assert bench.rudder_arm_m is None  # the linkage: the rudder's rate is a state
+    no_change = 'load.motor_torque_Nm=[{type="step", time_s=1.0, initial=2.0, final=2.0}]'
+    assert load_scenario("speed-step", settings=[no_change]).experiment().load_step_s is None
 
 
 def test_undefined_metrics():

@@ -263,7 +263,6 @@ def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
             result = simulate_scenario(scenario)  # a co-simulation where one is set
     except SimulationDiverged:
         return DIVERGED_COST, math.nan, math.nan
-    result.scenario = scenario.model_dump(mode="json", exclude_none=True, exclude={"compare"})
     tracking, chatter = tuning_terms(result, max_current)
     return weighted_cost(tracking, chatter), tracking, chatter
 

@@ -56,13 +56,13 @@ ZOOM_FRACTION = 0.08  # an inset spans this fraction of the run
 def _event_times(result) -> list[float]:
     """The start of the response (the reference's first step, sine or table) and the first load
     step, where the scenario has them (s)."""
-    times = []
-    for terms in result.scenario.get("reference", {}).values():
-        starts = [term.get("time_s", term.get("start_s", 0.0)) for term in terms[:1]]
-        times += [float(t[0] if isinstance(t, list) else t) for t in starts]  # a table's first
-    loads = [term for terms in result.scenario.get("load", {}).values() for term in terms]
-    steps = [float(term["time_s"]) for term in loads if term.get("type") == "step"]
-    return times[:1] + sorted(steps)[:1]
+    experiment = result.description.experiment if result.description is not None else None
+    if experiment is None:  # a bare Setup's run, or one saved before emasim described it
+        return []
+    first = experiment.reference[0]
+    start = first.get("time_s", first.get("start_s", 0.0))
+    times = [float(start[0] if isinstance(start, list) else start)]  # a table's first time
+    return times + ([experiment.load_step_s] if experiment.load_step_s is not None else [])
 
 
 def _insets(ax, traces: list[tuple], duration: float, times: list[float]) -> None:
@@ -153,7 +153,8 @@ def _panel_traces(ax) -> list[tuple]:
 def _output(result):
     """(label, unit scale, column, reference column) of the loop a run closes."""
     if result.outer_loop == "position":
-        if "rudder_deg" in result.scenario.get("reference", {}):
+        experiment = result.description.experiment if result.description is not None else None
+        if experiment is not None and experiment.quantity == "rudder":
             return "rudder angle (deg)", 180.0 / np.pi, "rudder_angle_rad", None
         return "position (mm)", 1e3, "actuator_position_m", "position_ref_m"
     return "speed (rpm)", RPM_PER_RAD_S, "motor_speed_rad_s", "speed_ref_rad_s"

@@ -113,27 +113,12 @@ def undefined_metrics(metrics: dict) -> dict[str, str]:
     return reasons
 
 
-def load_step_time(scenario: dict) -> float | None:
-    """Time of the first load step of a resolved scenario, or None."""
-    for terms in scenario.get("load", {}).values():
-        for term in terms:
-            if term.get("type") == "step" and term.get("final", 0.0) != term.get("initial", 0.0):
-                return float(term["time_s"])
-    return None
-
-
-def reference_kind(scenario: dict) -> tuple[str, str]:
-    """(quantity, shape): quantity 'speed', 'position' or 'rudder'; shape 'sine' or 'step'."""
-    reference = scenario.get("reference", {})
-    for key, quantity in (
-        ("speed_rpm", "speed"),
-        ("position_mm", "position"),
-        ("rudder_deg", "rudder"),
-    ):
-        if reference.get(key):
-            shape = "sine" if any(t.get("type") == "sine" for t in reference[key]) else "step"
-            return quantity, shape
-    raise ValueError("scenario has no reference")
+def experiment_of(result):
+    """The experiment the run made (emasim.sim.result.Experiment), from its description."""
+    description = result.description
+    if description is None or description.experiment is None:
+        raise ValueError("the run's description holds no experiment (a bare Setup's run)")
+    return description.experiment
 
 
 def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
@@ -145,23 +130,18 @@ def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     (``measured_rudder_rad``) and its differenced rate (:func:`differenced_rate`).
     """
     t = result.t
-    command = encode(
-        [
-            TypeAdapter(Term).validate_python(term)
-            for term in result.scenario["reference"]["rudder_deg"]
-        ]
-    )
+    experiment = experiment_of(result)
+    command = encode([TypeAdapter(Term).validate_python(term) for term in experiment.reference])
     reference = signal_values(command, t)
     reference_rate = np.gradient(reference, t)
     if measured:
         angle = DEG_PER_RAD * result["measured_rudder_rad"]
         return angle, reference, differenced_rate(t, angle), reference_rate
     angle = DEG_PER_RAD * result["rudder_angle_rad"]
-    if result.scenario["plant"].get("linkage"):
+    if experiment.rudder_arm_m is None:  # the linkage: the rudder's rate is a state
         rate = DEG_PER_RAD * result["linkage_rudder_rate_rad_s"]
     else:
-        arm = result.scenario["plant"]["load"]["rudder_arm_mm"] * 1e-3
-        rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / arm
+        rate = DEG_PER_RAD * result["actuator_velocity_m_s"] / experiment.rudder_arm_m
     return angle, reference, rate, reference_rate
 
 
@@ -188,14 +168,15 @@ def steady_window(t: np.ndarray) -> tuple[float, float]:
 
 def run_metrics(result) -> dict:
     """Metrics of a run, keyed with their unit (see the module docstring for definitions)."""
-    quantity, shape = reference_kind(result.scenario)
+    experiment = experiment_of(result)
+    quantity, shape = experiment.quantity, experiment.shape
     if quantity == "rudder":
         out = bench_sine_metrics(result) if shape == "sine" else bench_step_metrics(result)
     elif shape == "sine":
         out = sine_metrics(result, quantity)
     else:
         out = step_metrics(result, quantity)
-    cost = tuning_cost(result, result.scenario["plant"]["motor"]["max_current_A"])
+    cost = tuning_cost(result, experiment.max_current_A)
     return {**out, **limit_metrics(result), "tuning_cost": cost}
 
 
@@ -245,7 +226,7 @@ def cost_window(result) -> tuple[float, float]:
     """The steady window of the tuning cost: the bench's (:func:`steady_window`) for a rudder
     command, else the last STEADY_FRACTION of the run before its load step, as the step
     metrics' steady-state error."""
-    if reference_kind(result.scenario)[0] == "rudder":
+    if experiment_of(result).quantity == "rudder":
         return steady_window(result.t)
     t_end = _load_window(result)[1]
     return (t_end - STEADY_FRACTION * (t_end - result.t[0]), t_end - 1e-12)
@@ -311,19 +292,19 @@ def limits_crossed(result) -> dict:
       stroke (a real actuator would have hit its stops; with stops, :func:`run_warnings`
       reports the contact).
     """
-    plant = result.scenario["plant"]
+    experiment = experiment_of(result)
     checks = []
     if "motor_speed_rad_s" in result.columns:
         speed = np.abs(result["motor_speed_rad_s"]) * RPM_PER_RAD_S
-        limit = plant["motor"]["max_speed_rpm"]
+        limit = experiment.max_speed_rpm
         checks.append(("motor_speed", speed, limit, "rpm", "the motor's speed"))
     if "iq_A" in result.columns and "current_limit_A" in result.columns:
         current = np.abs(result["iq_A"])
         limit = result["current_limit_A"]
         checks.append(("current", current, limit, "A", "the q-axis current"))
-    if "end_stops" not in plant and "actuator_position_m" in result.columns:
+    if experiment.stroke_mm is not None and "actuator_position_m" in result.columns:
         travel = np.abs(result["actuator_position_m"]) * 1e3
-        half = 0.5 * plant["drivetrain"]["stroke_mm"]
+        half = 0.5 * experiment.stroke_mm
         checks.append(("rod_stroke", travel, half, "mm", "the rod's travel from mid stroke"))
     out = {}
     for name, value, limit, unit, what in checks:
@@ -363,7 +344,7 @@ def limit_warnings(limits: dict) -> list[str]:
 def _load_window(result) -> tuple[float | None, float]:
     """(load step time if inside the run, end of the interval before it)."""
     t = result.t
-    t_load = load_step_time(result.scenario)
+    t_load = experiment_of(result).load_step_s
     if t_load is not None and not t[0] < t_load < t[-1]:
         t_load = None  # the load comes after the end of the run
     return t_load, (t_load if t_load is not None else t[-1])
@@ -452,40 +433,29 @@ def step_metrics(result, quantity: str) -> dict:
     return {k: float(v) for k, v in out.items()}
 
 
-def _sine_frequency(scenario: dict, key: str) -> tuple[float, float]:
-    (term,) = [t for t in scenario["reference"][key] if t.get("type") == "sine"]
-    return float(term["frequency_Hz"]), abs(float(term["amplitude"]))
+def _sine_frequency(result) -> float:
+    """The frequency (Hz) of the run's sine reference: its one sine term's."""
+    frequency = experiment_of(result).sine_frequency_Hz
+    if frequency is None:
+        raise ValueError("a sine's metrics need a reference with one sine term")
+    return frequency
 
 
-# quantity -> (output column, reference column, scale to the unit, unit, reference key, floor)
+# quantity -> (output column, reference column, scale to the unit, unit, floor)
 SINE_SIGNALS = {
-    "speed": (
-        "motor_speed_rad_s",
-        "speed_ref_rad_s",
-        RPM_PER_RAD_S,
-        "rpm",
-        "speed_rpm",
-        RECOVERY_FLOOR_RPM,
-    ),
-    "position": (
-        "actuator_position_m",
-        "position_ref_m",
-        1e3,
-        "mm",
-        "position_mm",
-        RECOVERY_FLOOR_MM,
-    ),
+    "speed": ("motor_speed_rad_s", "speed_ref_rad_s", RPM_PER_RAD_S, "rpm", RECOVERY_FLOOR_RPM),
+    "position": ("actuator_position_m", "position_ref_m", 1e3, "mm", RECOVERY_FLOOR_MM),
 }
 
 
 def sine_metrics(result, quantity: str = "speed") -> dict:
     """Sine of motor speed (rpm, Fig. 6) or of rod position (mm): the largest error, the phase
     lag and the gain of the fundamental, and the load response."""
-    column, reference, scale, unit, key, floor = SINE_SIGNALS[quantity]
+    column, reference, scale, unit, floor = SINE_SIGNALS[quantity]
     t = result.t
     y = scale * result[column]
     ref = scale * result[reference]
-    frequency, _ = _sine_frequency(result.scenario, key)
+    frequency = _sine_frequency(result)
     track = m.sine_tracking(t, y, ref, frequency)
     out = {
         f"max_error_{unit}": track.max_abs_error,
@@ -553,7 +523,7 @@ def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> d
 
 
 def _rudder_sine_figures(result, t, angle, reference, rate, reference_rate) -> dict:
-    frequency, _ = _sine_frequency(result.scenario, "rudder_deg")
+    frequency = _sine_frequency(result)
     steady = steady_window(t)
     track = m.sine_tracking(t, angle, reference, frequency, steady)
     start = (t[0], t[0] + 1.0)

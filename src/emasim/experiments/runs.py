@@ -103,14 +103,19 @@ def simulate_scenario(
     """The bare simulation of a scenario, every solver setting honoured: a co-simulation where
     ``solver.communication_step_s`` is set (unless ``setup`` replaces the scenario's own
     Setup), else the compiled engine, recording ``solver.record_signals`` and what the metrics
-    read (ANALYSIS_COLUMNS). Both :func:`run_scenario` and the tuning's trials run this."""
+    read (ANALYSIS_COLUMNS). Both :func:`run_scenario` and the tuning's trials run this. The
+    Result's description holds the scenario's experiment (what its metrics and figures read)."""
     check_fmu_trust(scenario, trust_fmu)
     if scenario.solver.communication_step_s is not None and setup is None:
-        return cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
-    run = scenario.setup() if setup is None else setup
-    if run.record_signals is not None:  # and what the metrics and plots read
-        run = run.with_(record_signals=(*run.record_signals, *ANALYSIS_COLUMNS))
-    return simulate(run, progress=progress)
+        result = cosimulate(scenario, scenario.solver.communication_step_s, trust_fmu)
+    else:
+        run = scenario.setup() if setup is None else setup
+        if run.record_signals is not None:  # and what the metrics and plots read
+            run = run.with_(record_signals=(*run.record_signals, *ANALYSIS_COLUMNS))
+        result = simulate(run, progress=progress)
+    experiment = scenario.experiment()
+    result.description = dataclasses.replace(result.description, experiment=experiment)
+    return result
 
 
 def run_scenario(

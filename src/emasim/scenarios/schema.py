@@ -28,6 +28,7 @@ from ..signals import Table, Term, encode, lookup_table, signal_value, signal_va
 from ..sim.trace import TRACE_COLUMNS
 
 if TYPE_CHECKING:
+    from ..sim.result import Experiment
     from ..sim.setup import Setup
 
 # the sections every plant has: a plant table holding all of them is whole (_from_preset)
@@ -454,6 +455,37 @@ class Scenario(Strict):
             (v.label, self.model_copy(update={"controllers": v.controllers, "compare": []}))
             for v in self.compare
         ]
+
+    def experiment(self) -> "Experiment":
+        """What this scenario's run makes, typed, for its metrics and figures
+        (emasim.sim.result.Experiment)."""
+        from ..sim.result import Experiment
+
+        quantity, key = {
+            "speed_rpm": ("speed", "speed_rpm"),
+            "position_mm": ("position", "position_mm"),
+            "rudder_deg": ("rudder", "rudder_deg"),
+        }[next(k for k in ("speed_rpm", "position_mm", "rudder_deg") if getattr(self.reference, k))]
+        terms = getattr(self.reference, key)
+        sines = [t for t in terms if t.type == "sine"]
+        steps = [  # the first load step that changes the load, by section
+            t
+            for section in ("motor_torque_Nm", "rod_force_N", "rudder_torque_Nm")
+            for t in getattr(self.load, section)
+            if t.type == "step" and t.final != t.initial
+        ]
+        plant = self.plant
+        return Experiment(
+            quantity=quantity,
+            shape="sine" if sines else "step",
+            reference=tuple(t.model_dump(mode="json", exclude_none=True) for t in terms),
+            sine_frequency_Hz=float(sines[0].frequency_Hz) if len(sines) == 1 else None,
+            load_step_s=float(steps[0].time_s) if steps else None,
+            max_speed_rpm=plant.motor.max_speed_rpm,
+            max_current_A=plant.motor.max_current_A,
+            stroke_mm=plant.drivetrain.stroke_mm if plant.end_stops is None else None,
+            rudder_arm_m=plant.load.rudder_arm_mm * MM if plant.linkage is None else None,
+        )
 
     def controllers_label(self) -> str:
         """A short label of the controllers, e.g. 'position=pid, speed=pi'."""

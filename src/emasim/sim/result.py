@@ -35,6 +35,37 @@ TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
 
 
 @dataclass(frozen=True)
+class Experiment:
+    """The experiment a run made, typed (emasim.scenarios.schema.Scenario.experiment): what
+    its metrics and figures need of the scenario, so that none reads the TOML.
+
+    ``quantity``: the reference's, 'speed', 'position' or 'rudder'; ``shape``: 'sine' or
+    'step'; ``reference``: its terms as given (in rpm, mm or deg, plain dicts);
+    ``sine_frequency_Hz``: the sine's, if it is one; ``load_step_s``: the first load step's
+    time, if any; the limits the run is checked against: ``max_speed_rpm``,
+    ``max_current_A`` and ``stroke_mm`` (None where end stops hold the rod);
+    ``rudder_arm_m``: the lumped stage's arm (None with the linkage, whose rudder rate is a
+    state)."""
+
+    quantity: str
+    shape: str
+    reference: tuple[dict, ...]
+    sine_frequency_Hz: float | None
+    load_step_s: float | None
+    max_speed_rpm: float
+    max_current_A: float
+    stroke_mm: float | None
+    rudder_arm_m: float | None
+
+    def to_json(self) -> dict:
+        return {**self.__dict__, "reference": [dict(t) for t in self.reference]}
+
+    @classmethod
+    def from_json(cls, data: dict) -> "Experiment":
+        return cls(**{**data, "reference": tuple(dict(t) for t in data["reference"])})
+
+
+@dataclass(frozen=True)
 class RunDescription:
     """What a run was, typed: analysis and reports read this, never NaN columns or the TOML.
 
@@ -44,7 +75,9 @@ class RunDescription:
     the reference drives; ``sensors``: channel -> its non-ideal properties (resolution,
     noise_std, offset, gap_width in SI, sample_period_s when it samples slower than the
     controllers, derived_from and filter_alpha for a differenced channel) of every non-ideal
-    channel; ``units``: column -> unit of every trace column.
+    channel; ``units``: column -> unit of every trace column; ``experiment``: what the run
+    made (:class:`Experiment`; None for a bare simulation of a Setup, and for a result
+    saved before emasim recorded it).
     """
 
     elements: tuple[str, ...]
@@ -52,6 +85,7 @@ class RunDescription:
     outer_loop: str
     sensors: dict[str, dict[str, float | str]]
     units: dict[str, str]
+    experiment: Experiment | None = None
 
     def to_json(self) -> dict:
         return {
@@ -60,16 +94,19 @@ class RunDescription:
             "outer_loop": self.outer_loop,
             "sensors": {name: dict(v) for name, v in self.sensors.items()},
             "units": dict(self.units),
+            "experiment": None if self.experiment is None else self.experiment.to_json(),
         }
 
     @classmethod
     def from_json(cls, data: dict) -> "RunDescription":
+        experiment = data.get("experiment")
         return cls(
             elements=tuple(data["elements"]),
             loops=dict(data["loops"]),
             outer_loop=data["outer_loop"],
             sensors={name: dict(v) for name, v in data["sensors"].items()},
             units=dict(data["units"]),
+            experiment=None if experiment is None else Experiment.from_json(experiment),
         )
 
 
