@@ -25,9 +25,11 @@ from ..analysis.components import (
     TUNED,
     figures_of,
 )
-from ..analysis.judged import HYBRID_LABEL, PID_LABEL
+from ..analysis.judged import HEADLINE, HYBRID_LABEL, PID_LABEL
 from ..analysis.report import TRUE_PREFIX
 from .batch import Job
+
+JUDGED = {experiment.replace("_", "-") for experiment, _, _ in HEADLINE.values()}
 
 if TYPE_CHECKING:
     from ..scenarios.schema import Scenario
@@ -48,11 +50,12 @@ PARTS = dict(  # part -> (position loop changes, speed loop changes), in PART_NA
 
 def component_jobs(chosen: dict[str, "Scenario"]) -> list[Job]:
     """The run of every component of COMPONENTS (its label, tags ``experiment`` and
-    ``component``), on each chosen bench experiment that compares the hybrid with PID."""
+    ``component``), on each chosen experiment the headline judges (JUDGED) that compares the
+    hybrid with PID."""
     runs = []
     for name, scenario in chosen.items():
         sets = dict(scenario.variants())
-        if not name.startswith("bench") or not {PID_LABEL, HYBRID_LABEL} <= set(sets):
+        if name not in JUDGED or not {PID_LABEL, HYBRID_LABEL} <= set(sets):
             continue
         hybrid, pid = sets[HYBRID_LABEL].controllers, sets[PID_LABEL].controllers
         crossed = {

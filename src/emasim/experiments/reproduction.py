@@ -125,7 +125,8 @@ def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tupl
 
     figures, later = {}, []
     for name, comparison in comparisons.items():
-        plot = plot_bench if name.startswith("bench") or name == "cosim-step" else plot_comparison
+        first = next(iter(comparison.results.values())).description.experiment
+        plot = plot_bench if first.quantity == "rudder" else plot_comparison
         path = f"figures/{name}.png"
         drawer.save(partial(plot, comparison.results, name), folder / path)
         figures[name] = [(name, path)]
