@@ -43,12 +43,26 @@ def step(x, x0, h0, x1, h1):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def normal_force(delta, delta_dot, c):
-    """IMPACT normal force (N) for penetration delta (m) and its rate (m/s); 0 when apart."""
+def penetration_power(delta, c):
+    """delta ** e (0 when apart): the IMPACT law's one call of libm. The linkage calls it for
+    its four hinges together, before their other work, so that the processor overlaps the
+    four (emasim.plant.elements.linkage.linkage_rhs)."""
+    return delta ** c[C_E] if delta > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def normal_force_of(power, delta, delta_dot, c):
+    """:func:`normal_force` with its ``power`` = penetration_power(delta, c) given."""
     if delta <= 0.0:
         return 0.0
     damping = step(delta, 0.0, 0.0, c[C_DEPTH], c[C_DAMP])
-    return max(0.0, c[C_K] * delta ** c[C_E] + damping * delta_dot)
+    return max(0.0, c[C_K] * power + damping * delta_dot)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def normal_force(delta, delta_dot, c):
+    """IMPACT normal force (N) for penetration delta (m) and its rate (m/s); 0 when apart."""
+    return normal_force_of(penetration_power(delta, c), delta, delta_dot, c)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
