@@ -399,6 +399,31 @@ def test_removal_deletes_only_the_manifests_files_never_through_a_link(tmp_path)
     assert not (folder / "a.txt").exists() and not (folder / MARKER).exists()
 
 
+def test_a_name_the_manifest_lists_without_a_stamp_is_not_proof(tmp_path):
+    """A manifest entry with no stamp (a manifest written before stamps) proves nothing: a
+    user's file at that name is foreign, kept by remove_own and refused by --force."""
+    folder = write_folder(tmp_path / "run", fill)
+    (folder / "notes.txt").write_text("a user's")
+    record = json.loads((folder / MARKER).read_text())
+    record["files"].append("notes.txt")  # listed, no stamp
+    (folder / MARKER).write_text(json.dumps(record))
+    assert foreign_files(folder) == ["notes.txt"]
+    with pytest.raises(OutputError, match="notes.txt"):
+        write_folder(folder, fill, force=True)
+    assert not remove_own(folder)
+    assert (folder / "notes.txt").read_text() == "a user's"
+
+
+def test_removal_through_a_link_to_a_result_removes_nothing(tmp_path):
+    """remove_own given a link to an emasim result leaves the result whole."""
+    folder = write_folder(tmp_path / "run", fill)
+    link = tmp_path / "link"
+    link.symlink_to(folder, target_is_directory=True)
+    before = sorted(p.name for p in folder.iterdir())
+    assert not remove_own(link)
+    assert sorted(p.name for p in folder.iterdir()) == before and link.is_symlink()
+
+
 def test_a_file_put_into_a_result_as_force_moves_it_aside_puts_it_back(tmp_path, monkeypatch):
     """--force moves the old result aside, then checks it against its manifest: a file that
     appears in it at that moment makes the check refuse, and the old result is put back in

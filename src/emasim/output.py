@@ -56,8 +56,9 @@ def is_emasim_folder(path: Path) -> bool:
 
 def _owned(folder: Path) -> dict[str, bool]:
     """Each file or link under ``folder`` -> whether it is emasim's: in the manifest with its
-    stamp unchanged, in the build's journal, or the same inode as a file the journal lists
-    (new_file killed between link and line; a published result has no journal)."""
+    stamp unchanged (a listed name with no stamp proves nothing), in the build's journal, or
+    the same inode as a file the journal lists (new_file killed between link and line; a
+    published result has no journal)."""
     stamps, found, journal = manifest_stamps(folder), {}, set()
     with contextlib.suppress(OSError, ValueError):
         journal = set((folder / JOURNAL).read_text().splitlines())
@@ -68,7 +69,7 @@ def _owned(folder: Path) -> dict[str, bool]:
     inode = {n: (st.st_dev, st.st_ino) for n, st in found.items() if not stat.S_ISLNK(st.st_mode)}
     parts = {inode[name] for name in journal if name in inode}
     return {
-        name: stamps[name] in (None, stamp(st))
+        name: stamps[name] == stamp(st)
         if name in stamps
         else name in journal or inode.get(name) in parts
         for name, st in found.items()
@@ -83,7 +84,10 @@ def foreign_files(folder: Path) -> list[str]:
 
 def remove_own(folder: Path) -> bool:
     """Delete emasim's files under ``folder`` (a link itself, never what it points to), its
-    journal and marker, then the folders left empty. True when the folder is gone."""
+    journal and marker, then the folders left empty. True when the folder is gone; a link or
+    anything but a real folder is left alone (False)."""
+    if not _real_folder(folder):
+        return False
     for name in [name for name, own in _owned(folder).items() if own] + [JOURNAL, MARKER]:
         with contextlib.suppress(OSError):
             os.unlink(folder / name)
@@ -198,9 +202,11 @@ def locked(folder: Path):
 
 
 def _rename(src: Path, dst: Path) -> bool:
-    """Rename ``src`` to ``dst``; False, and nothing replaced, where ``dst`` exists: Linux's
-    renameat2(RENAME_NOREPLACE), else (another system, a file system without the flag)
-    rename(2), which for a folder can replace only an empty folder, one the rules take anyway."""
+    """Rename the folder ``src`` (every caller's is one) to ``dst``; False, and nothing
+    replaced, where ``dst`` exists: Linux's renameat2(RENAME_NOREPLACE), else (another system,
+    a file system without the flag) rename(2), which for a folder can replace only an empty
+    folder, one the rules take anyway (a file, a link or a folder with anything in it makes
+    it fail)."""
     if _RENAMEAT2 is not None:  # -100: AT_FDCWD, 1: RENAME_NOREPLACE
         if _RENAMEAT2(-100, os.fsencode(src), -100, os.fsencode(dst), 1) == 0:
             return True
