@@ -173,29 +173,19 @@ def test_the_sensitivity_names_the_parameter_the_improvement_follows():
     assert found["parameter"] == backlash and found["spearman"] == pytest.approx(1.0)
 
 
-def series_table() -> pd.DataFrame:
-    """An identify series table as emasim identify --at writes it: two traces of a bench
-    whose friction, backlash and clearance grew."""
+def series_values() -> dict:
+    """What emasim identify --at found on two traces of a bench whose friction, backlash and
+    clearance grew: each key's value at each date."""
     from emasim.experiments.variation import FACTOR
 
     friction = (
         "plant.friction.coulomb_Nm,plant.friction.static_Nm,plant.friction.viscous_Nms_per_rad"
     )
-    rows = []
-    for at, (factor, backlash, clearance) in {
-        "0": (1.0, 0.1, 0.01),
-        "5000": (1.5, 0.2, 0.03),
-    }.items():
-        row = {"at": at, "file": f"{at}.parquet", "sha256": "0" * 64}
-        for key, value in {
-            friction + FACTOR: factor,
-            "plant.backlash.width_mm": backlash,
-            "plant.linkage.hinge_clearance_mm": clearance,
-        }.items():
-            row[key], row[f"{key} interval95"] = value, 0.01 * value
-        row["error rudder_rad"] = 0.001
-        rows.append(row)
-    return pd.DataFrame(rows)
+    return {
+        friction + FACTOR: [1.0, 1.5],
+        "plant.backlash.width_mm": [0.1, 0.2],
+        "plant.linkage.hinge_clearance_mm": [0.01, 0.03],
+    }
 
 
 def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
@@ -206,10 +196,10 @@ def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
     from emasim.experiments.batch import dask_client
     from emasim.experiments.study import StudySpec
 
-    table = series_table()
+    values = series_values()
     nominal = load_scenario("bench-sine").plant
     jobs = plan_study(
-        StudySpec("bench-sine", vary=(wear.series_variation(table, "bench-sine"),))
+        StudySpec("bench-sine", vary=(wear.series_variation(values, "bench-sine"),))
     ).jobs
     worn = [job for job in jobs if job.label == "hybrid"][-1].scenario.plant
     assert worn.backlash.width_mm == pytest.approx(0.2)
@@ -220,7 +210,8 @@ def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
     )
     with dask_client(processes=False, workers=1) as client:
         out = wear.run_wear_series(
-            table,
+            values,
+            ["0", "5000"],
             root=tmp_path,
             client=client,
             scenarios=("bench-step",),
@@ -230,6 +221,4 @@ def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
     assert entry["at"] == ["0", "5000"] and entry["levels"] == [0, 1]
     assert all(np.isfinite(entry[label]).all() for label in ("PID", "hybrid"))
     with pytest.raises(InputError, match="no single non-zero number"):
-        wear.series_variation(
-            table.rename(columns={"plant.backlash.width_mm": "plant.mass_kg"}), "bench-sine"
-        )
+        wear.series_variation({"plant.mass_kg": [80.0, 90.0]}, "bench-sine")

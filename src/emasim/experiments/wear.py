@@ -9,12 +9,14 @@ experiment runs at every level with PID and with the hybrid (a study, :mod:`.stu
 ``runs/robustness/wear-<scenario>-<key>/``, found again like the robustness studies.
 
 :func:`run_wear_series` runs the same study at values identified over an actuator's life
-instead of the levels: the table of ``emasim identify --data ... --at ...``
-(emasim.identification.identify.identify_series), one row per trace, each identified key as a
-factor on the bench's own value, in ``runs/robustness/wear-series-<scenario>-<key>/``.
+instead of the levels: the values ``emasim identify --data ... --at ...`` found at each date
+(emasim.identification.identify.identify_series), each identified key as a factor on the
+bench's own value, in ``runs/robustness/wear-series-<scenario>-<key>/``.
 """
 
 import json
+
+import numpy as np
 
 from ..analysis.judged import HYBRID_LABEL, PID_LABEL
 from ..errors import InputError
@@ -22,8 +24,6 @@ from ..scenarios.loader import load_scenario
 from .robustness import ROOT, SCENARIOS, figures, study_key
 from .study import StudySpec, complete_tables, resolved_value, run_study
 from .variation import FACTOR
-
-SERIES_COLUMNS = ("at", "file", "sha256")  # a series table's columns that are no key
 
 LEVELS = 5
 WEAR_KEYS = (
@@ -84,27 +84,23 @@ def degradation(tables: dict, level: str = LEVEL, levels: int = LEVELS, at=None)
     return out
 
 
-def series_variation(series, scenario: str) -> str:
-    """The ``--vary`` text that sets ``scenario`` at each row of an identify series table
-    (``series``, a DataFrame): every identified key's paths zipped, as factors on the
-    scenario's own values (a factor key's value as it is; a value over the scenario's, one
-    for every element of a list whose elements are alike). One InputError line for a key
-    the scenario has no number at, or a zero it cannot scale."""
+def series_variation(values: dict, scenario: str) -> str:
+    """The ``--vary`` text that sets ``scenario`` at each of a series of identified values
+    (``values``: key -> its value at each date, as emasim identify names the keys): every
+    key's paths zipped, as factors on the scenario's own values (a factor key's value as it
+    is; a value over the scenario's, one for every element of a list whose elements are
+    alike). One InputError line for a key the scenario has no number at, or a zero it cannot
+    scale."""
     resolved = load_scenario(scenario).model_dump(mode="json")
-    keys = [
-        c
-        for c in series.columns
-        if c not in SERIES_COLUMNS and not c.endswith(" interval95") and not c.startswith("error ")
-    ]
-    if not keys or series.empty:
+    if not values:
         raise InputError("--wear: the series holds no identified key")
     paths, factors = [], []
-    for key in keys:
-        values = series[key].to_numpy(dtype=float)
+    for key, series in values.items():
+        series = np.asarray(series, dtype=float)
         if key.endswith(FACTOR):
             for path in key.removesuffix(FACTOR).split(","):
                 paths.append(path)
-                factors.append(values)
+                factors.append(series)
             continue
         own = resolved_value(resolved, key)
         alike = own if not isinstance(own, list) else (own[0] if len(set(own)) == 1 else None)
@@ -113,24 +109,24 @@ def series_variation(series, scenario: str) -> str:
                 f"--wear {key}: {scenario} has no single non-zero number there to scale"
             )
         paths.append(key)
-        factors.append(values / alike)
-    rows = [[float(f[i]) for f in factors] for i in range(len(series))]
+        factors.append(series / alike)
+    rows = np.column_stack(factors).tolist()
     return ",".join(paths) + "=*" + json.dumps(rows).replace(" ", "")
 
 
 def run_wear_series(
-    series, root=ROOT, client=None, scheduler=None, scenarios=SCENARIOS, settings=()
+    values: dict, at: list, root=ROOT, client=None, scheduler=None, scenarios=SCENARIOS, settings=()
 ) -> dict:
-    """Run (or resume) each bench experiment with PID and the hybrid at every row of the
-    identify series table ``series`` (:func:`series_variation`); ``settings`` fixed
-    ``KEY=VALUE`` overrides. Returns :func:`degradation` against the rows' ``at``."""
+    """Run (or resume) each bench experiment with PID and the hybrid at each date's identified
+    values (``values``: key -> its value at each of the dates ``at``; :func:`series_variation`);
+    ``settings`` fixed ``KEY=VALUE`` overrides. Returns :func:`degradation` against ``at``."""
     tables = {}
     for scenario in scenarios:
-        vary = (series_variation(series, scenario),)
+        vary = (series_variation(values, scenario),)
         spec = StudySpec(
             scenario, vary=vary, labels=(PID_LABEL, HYBRID_LABEL), settings=tuple(settings)
         )
         folder = root / f"wear-series-{scenario}-{study_key(scenario, vary + tuple(settings))}"
         tables[scenario] = run_study(spec, folder, client=client, scheduler=scheduler).table
     level = vary[0].split("=", 1)[0]
-    return degradation(tables, level, len(series), list(series["at"]))
+    return degradation(tables, level, len(at), list(at))

@@ -303,7 +303,8 @@ def identify_series(
     if wear:
         from ..experiments.wear import run_wear_series
 
-        series = replace(series, wear=run_wear_series(series.table))
+        values = {key: [run.values[key] for run in runs] for key in runs[0].values}
+        series = replace(series, wear=run_wear_series(values, labels))
     if out is None:
         return series
     return replace(series, folder=_write_series(series, labels, Path(out), force))
