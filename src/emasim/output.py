@@ -1,22 +1,21 @@
 """Writing results without ever deleting, renaming or replacing anything emasim did not create.
 
 * A result is a real folder holding emasim's marker (:mod:`emasim.manifest`), whose manifest
-  lists each file emasim wrote there with its size and modification time. A new path or an empty
-  folder is written; an emasim result is replaced only with ``force``, and only while it holds
-  its manifest's files alone, unchanged; anything else (a user's folder, file or link) is
+  lists each file emasim wrote there with its size and modification time. A new path or an
+  empty folder is written; an emasim result is replaced only with ``force``, and only while it
+  holds its manifest's files alone, unchanged; anything else (a user's folder, file or link) is
   refused. A file follows the same rules, ``is_ours`` telling whether one there is emasim's.
-* A write builds in ``.<name>.tmp-<pid>-<token>`` beside the target, marked from the start, where
-  :func:`new_file` lists each file in the journal before it exists; it writes the manifest and,
+* A write builds in ``.<name>.tmp-<pid>-<token>`` beside the target, marked from the start, its
+  journal listing each file before it exists (:func:`new_file`); it writes the manifest and,
   under the parent's lock, publishes by a rename that replaces nothing (:func:`_rename`).
 * ``force`` moves the old result aside (``.<name>.old-<pid>-<token>``), checks it against its
-  manifest (anything else there: put back, refused), renames the new one in, and deletes the old
-  one's own files. A file is hard-linked into place (``link(2)`` replaces nothing), or with
-  ``force`` checked again under the lock and replaced: a file another program saves there
-  between the two is the one race left.
+  manifest (anything else there: put back, refused), renames the new one in and deletes the old
+  one's own files. A file is hard-linked into place (replacing nothing), or with ``force``
+  checked again under the lock and replaced: a file saved there between the two is the race left.
 * A kill leaves the target complete or absent. Its debris, a real folder named as above whose
   process is gone, holding the marker or empty, loses at the next write there the files its
   journal or manifest lists, its marker, journal and empty folders: nothing else.
-* No link is ever followed, and modes follow the umask.
+* No link is ever followed; modes follow the umask. For users: docs/guide.md, "Where results go".
 """
 
 import contextlib
@@ -55,10 +54,9 @@ def is_emasim_folder(path: Path) -> bool:
 
 
 def _owned(folder: Path) -> dict[str, bool]:
-    """Each file or link under ``folder`` -> whether it is emasim's: in the manifest with its
-    stamp unchanged (a listed name with no stamp proves nothing), in the build's journal, or
-    the same inode as a file the journal lists (new_file killed between link and line; a
-    published result has no journal)."""
+    """Each file or link under ``folder`` -> whether it is emasim's: listed in the manifest with
+    its stamp unchanged (a name without a stamp proves nothing), else listed in the journal or
+    the same inode as a file listed there (new_file killed between its link and its line)."""
     stamps, found, journal = manifest_stamps(folder), {}, set()
     with contextlib.suppress(OSError, ValueError):
         journal = set((folder / JOURNAL).read_text().splitlines())
@@ -68,13 +66,8 @@ def _owned(folder: Path) -> dict[str, bool]:
                 found[Path(root, name).relative_to(folder).as_posix()] = os.lstat(Path(root, name))
     inode = {n: (st.st_dev, st.st_ino) for n, st in found.items() if not stat.S_ISLNK(st.st_mode)}
     parts = {inode[name] for name in journal if name in inode}
-    return {
-        name: stamps[name] == stamp(st)
-        if name in stamps
-        else name in journal or inode.get(name) in parts
-        for name, st in found.items()
-        if name not in (MARKER, JOURNAL)
-    }
+    own = {n: n in journal or inode.get(n) in parts for n in found.keys() - {MARKER, JOURNAL}}
+    return own | {n: stamps[n] == stamp(found[n]) for n in own.keys() & stamps.keys()}
 
 
 def foreign_files(folder: Path) -> list[str]:
@@ -83,9 +76,8 @@ def foreign_files(folder: Path) -> list[str]:
 
 
 def remove_own(folder: Path) -> bool:
-    """Delete emasim's files under ``folder`` (a link itself, never what it points to), its
-    journal and marker, then the folders left empty. True when the folder is gone; a link or
-    anything but a real folder is left alone (False)."""
+    """Delete emasim's files under the real folder ``folder`` (a link itself, never its target),
+    its journal, marker and emptied folders; True when ``folder`` is gone."""
     if not _real_folder(folder):
         return False
     for name in [name for name, own in _owned(folder).items() if own] + [JOURNAL, MARKER]:
@@ -99,10 +91,8 @@ def remove_own(folder: Path) -> bool:
 
 @contextlib.contextmanager
 def new_file(path: Path):
-    """Open a new file for writing bytes and yield the handle; never opens an existing name. In
-    a build folder (from any process) it lists ``.<name>.part-<token>``, a name no one else can
-    know, in the journal (one ``O_APPEND`` write a line), writes it, hard-links it to ``path``
-    (which fails if the name is taken), lists ``path``, and removes the part."""
+    """Yield a handle writing bytes to a new file; never opens an existing name. In a build, a
+    hidden part is journalled, written, linked to ``path`` (only if free), then that journalled."""
     path = Path(path).absolute()
     builds = [p for p in path.parents if (m := _DEBRIS.match(p.name)) and m["kind"] == "tmp"]
     if not builds:
@@ -110,7 +100,7 @@ def new_file(path: Path):
             yield handle
         return
     part = path.with_name(f".{path.name}.part-{secrets.token_hex(4)}")
-    with open(builds[0] / JOURNAL, "ab", buffering=0) as journal:
+    with open(builds[0] / JOURNAL, "ab", buffering=0) as journal:  # one O_APPEND write a line
         journal.write(f"{part.relative_to(builds[0]).as_posix()}\n".encode())
         handle = open(part, "xb")  # before the try: a name that exists is not removed
         try:
@@ -139,7 +129,7 @@ def check_parents(path: Path, what: str) -> None:
 
 def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None):
     """Raise OutputError unless a result folder (or, given ``is_ours``, a file) may be written
-    at ``path`` (module rules); ``hints`` say how to replace it, and how to get a fresh one."""
+    at ``path``; ``hints`` say how to replace it, and how to get a fresh one."""
     path, folder = Path(path), is_ours is None
     check_parents(path, what)
     if not os.path.lexists(path) or folder and _real_folder(path) and not any(path.iterdir()):
@@ -153,13 +143,12 @@ def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, 
     if not force:
         told = "holds an emasim result already" if folder else "exists (written by emasim)"
         raise OutputError(f"{what} {path}: {told}; {', '.join(hints)}")
-    if folder:
-        _refuse_foreign(path, path, what)
+    _refuse_foreign(path, path, what)  # a file holds no files
 
 
 def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0]) -> None:  # fmt: skip
-    """Raise OutputError unless a file may be written at ``path`` (module rules)."""
+    """Raise OutputError unless a file may be written at ``path``."""
     check_folder(path, force, what, (replace_hint,), is_ours)
 
 
@@ -174,7 +163,7 @@ def _refuse_foreign(folder: Path, path: Path, what: str) -> None:
 
 
 def clean_leftovers(folder: Path) -> list[Path]:
-    """Remove the debris in ``folder`` (module docstring); return the folders removed."""
+    """Remove the debris of dead processes in ``folder``; return the folders removed."""
     removed = []
     for entry in Path(folder).iterdir() if Path(folder).is_dir() else ():
         if not (match := _DEBRIS.match(entry.name)) or not _real_folder(entry):
@@ -202,18 +191,14 @@ def locked(folder: Path):
 
 
 def _rename(src: Path, dst: Path) -> bool:
-    """Rename the folder ``src`` (every caller's is one) to ``dst``; False, and nothing
-    replaced, where ``dst`` exists: Linux's renameat2(RENAME_NOREPLACE), else (another system,
-    a file system without the flag) rename(2), which for a folder can replace only an empty
-    folder, one the rules take anyway (a file, a link or a folder with anything in it makes
-    it fail)."""
+    """Rename the folder ``src`` to ``dst``; False, nothing replaced, where ``dst`` exists.
+    Without renameat2's RENAME_NOREPLACE, rename(2) can replace only an empty folder."""
     if _RENAMEAT2 is not None:  # -100: AT_FDCWD, 1: RENAME_NOREPLACE
         if _RENAMEAT2(-100, os.fsencode(src), -100, os.fsencode(dst), 1) == 0:
             return True
-        code = ctypes.get_errno()
-        if code == errno.EEXIST:
-            return False
-        if code not in (errno.EINVAL, errno.ENOSYS):
+        if (code := ctypes.get_errno()) not in (errno.EINVAL, errno.ENOSYS):  # else: no flag
+            if code == errno.EEXIST:
+                return False
             raise OSError(code, os.strerror(code), os.fspath(src))
     try:
         os.rename(src, dst)
@@ -226,8 +211,8 @@ def _rename(src: Path, dst: Path) -> bool:
 
 @contextlib.contextmanager
 def _build(path: Path, kind: str, what: str):
-    """Yield a fresh build folder beside ``path``, holding the marker, after removing the debris
-    there; then remove what is left of it. An OSError (a full disk) becomes one line."""
+    """Yield a fresh, marked build folder beside ``path`` (the debris there removed first),
+    then remove what is left of it; an OSError (a full disk) becomes one line."""
     tmp = _beside(path, "tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -245,9 +230,8 @@ def _build(path: Path, kind: str, what: str):
 def write_folder(path: Path, write: Callable[[Path], None], *, force: bool = False,
                  unique: bool = False, kind: str = "run", what: str = "--out",
                  hints: tuple[str, str] = CLI_HINTS) -> Path:  # fmt: skip
-    """Build a result folder with ``write(tmp)``, publish it at ``path`` and return where.
-    ``kind`` goes into the marker. ``unique``: ``path`` is a fresh name (naming.fresh_folder),
-    and one another process takes meanwhile moves it on to the next suffix (``-2``...)."""
+    """Build a result folder with ``write(tmp)``, publish it at ``path`` and return where;
+    ``kind`` goes into the marker. ``unique``: a name taken meanwhile moves on to ``-2``..."""
     path = Path(path)
     check_folder(path, force, what, hints)
     with _build(path, kind, what) as tmp:
@@ -262,23 +246,20 @@ def write_folder(path: Path, write: Callable[[Path], None], *, force: bool = Fal
 
 
 def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
-    """Rename the build ``tmp`` to ``path``; False where it is taken. ``force`` swaps an emasim
-    result (module docstring); should a program take its freed name in that moment, the old
-    result stays aside, as after a kill."""
+    """Rename ``tmp`` to ``path``; False where it is taken. ``force`` swaps an emasim result
+    (a program taking its freed name meanwhile leaves the old one aside, as a kill would)."""
     if not (force and is_emasim_folder(path)):
         with contextlib.suppress(OSError):  # one that got a file meanwhile stays, and refuses
             os.rmdir(path)  # an empty folder is taken: rmdir removes nothing else, nor a link
         return _rename(tmp, path)
-    old = _beside(path, "old")
-    _rename(path, old)
+    _rename(path, old := _beside(path, "old"))
     try:
         _refuse_foreign(old, path, what)
     except BaseException:
         with contextlib.suppress(OSError):
             _rename(old, path)  # put back
         raise
-    published = _rename(tmp, path)
-    if published:
+    if published := _rename(tmp, path):
         remove_own(old)
     return published
 
@@ -286,8 +267,8 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
 def write_file(path: Path, content: bytes | str | Path, *, force: bool = False,
                is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0]) -> Path:  # fmt: skip
-    """Write ``content`` (bytes, text, or the path of a file to copy) to the file ``path``:
-    built in a build folder, then hard-linked into place (``force``: module docstring)."""
+    """Write ``content`` (bytes, text, or a file's path to copy) to the file ``path``, built in
+    a build folder, then hard-linked into place or, with ``force``, checked again and replaced."""
     path = Path(path)
     check_file(path, force, is_ours, what, replace_hint)
     with _build(path, "file", what) as tmp:
@@ -296,9 +277,8 @@ def write_file(path: Path, content: bytes | str | Path, *, force: bool = False,
             if force and os.path.lexists(path):
                 check_file(path, force, is_ours, what, replace_hint)  # again, under the lock
                 os.replace(tmp / path.name, path)
-            else:
-                try:
-                    os.link(tmp / path.name, path)
-                except FileExistsError:
-                    raise OutputError(f"{what} {path}: {_TAKEN}") from None
-    return path
+                return path
+            with contextlib.suppress(FileExistsError):
+                os.link(tmp / path.name, path)  # replaces nothing
+                return path
+    raise OutputError(f"{what} {path}: {_TAKEN}")
