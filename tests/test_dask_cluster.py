@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from emasim.experiments.study import read_table
+from emasim.experiments.store import read_table
 
 STUDY = ["study", "speed-step", "--label", "PI", "--set", "duration_s=0.02"]
 STUDY += ["--vary", "plant.backlash.width_mm=0.05,0.1,0.2"]

@@ -18,7 +18,8 @@ from emasim.cli import _disk_full, app
 from emasim.errors import InputError
 from emasim.experiments import batch, runs
 from emasim.experiments.batch import dask_client
-from emasim.experiments.study import LOG_FILE, RUNS_FOLDER, StudySpec, read_table, run_study
+from emasim.experiments.store import LOG_FILE, RUNS_FOLDER, read_table
+from emasim.experiments.study import StudySpec, run_study
 from emasim.experiments.variation import parse_variation
 from emasim.output import foreign_files
 
@@ -169,7 +170,7 @@ def test_worker_output_goes_to_the_log_file(tmp_path):
     log = tmp_path / LOG_FILE
     code = (
         "import logging, sys, warnings\n"
-        "from emasim.experiments.study import FAILURE_LOG\n"
+        "from emasim.experiments.store import FAILURE_LOG\n"
         "from emasim.experiments.worker_setup import LogToFile, OneLineWarnings\n"
         f"LogToFile({str(log)!r}, FAILURE_LOG).setup(None); OneLineWarnings().setup(None)\n"
         "print('printed'); warnings.warn('warned')\n"

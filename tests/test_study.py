@@ -15,17 +15,19 @@ import pytest
 from emasim.errors import InputError
 from emasim.experiments.batch import dask_client
 from emasim.experiments.runs import run_scenario
-from emasim.experiments.study import (
+from emasim.experiments.store import (
     METRICS_FILE,
     RUNS_FOLDER,
-    Plan,
-    StudySpec,
     finished_rows,
-    grouping_keys,
-    plan_study,
     read_table,
     run_and_write,
     run_id_of,
+)
+from emasim.experiments.study import (
+    Plan,
+    StudySpec,
+    grouping_keys,
+    plan_study,
     run_study,
     summarize_by,
     varied,
@@ -301,7 +303,7 @@ def test_a_task_run_again_reads_the_runs_it_finished_before(tmp_path, client, mo
         raise AssertionError("a finished run was simulated again")
 
     monkeypatch.setattr(runs, "run_scenario", no_run)
-    row = run_and_write(job, folder, traces=False)
+    row = run_and_write(job, folder)
     assert row == finished_rows(tmp_path / "s")[run_id_of(job)]
     assert row["steady_error_rms_rpm"] == study.table.iloc[0]["steady_error_rms_rpm"]
 

@@ -13,7 +13,8 @@ from emasim.analysis.plots import plot_verdict_map
 from emasim.analysis.verdict_map import cell_at, flip_line, flips, markdown
 from emasim.experiments.batch import run_all
 from emasim.experiments.robustness import BASELINES, figures
-from emasim.experiments.study import OK, plan_study
+from emasim.experiments.store import OK
+from emasim.experiments.study import plan_study
 from emasim.experiments.verdict_map import (
     AXES,
     ENCODERS,

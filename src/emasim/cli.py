@@ -680,7 +680,7 @@ def study(
 
 def _status_line(table) -> str:
     """'3 ok, 1 diverged, 0 failed'."""
-    from .experiments.study import status_counts
+    from .experiments.store import status_counts
 
     return ", ".join(f"{n} {kind}" for kind, n in status_counts(table).items())
 
@@ -689,7 +689,7 @@ def _print_study(result) -> None:
     """How many runs are ok, diverged and failed, the first reasons (warnings), and the median
     [5 %, 95 %] of each metric that varies, one column per controller set: at each value of
     every varied key that takes a few (study.grouping_keys), else over all the runs."""
-    from .experiments.study import LOG_FILE, OK, first_reasons, status_counts
+    from .experiments.store import LOG_FILE, OK, first_reasons, status_counts
 
     counts = status_counts(result.table)
     if counts[OK] < len(result.table):
@@ -819,7 +819,8 @@ def reproduce(
     finally:
         progress.close()
     log.info(
-        f"wrote {folder}/report.md, report.html, tables.json in {time.perf_counter() - start:.1f} s"
+        f"wrote {folder}/report.md, report.html, tables.json, runs.parquet in "
+        f"{time.perf_counter() - start:.1f} s"
     )
 
 

@@ -105,7 +105,8 @@ def ablation(
     given, the controller sets to run (the ablation's tables compare PID and the hybrid)."""
     known = known or {}
     jobs = ablation_jobs(scenarios, known, labels)
-    return ablation_table(scenarios, jobs, run_jobs(jobs), known, labels)
+    metrics = [result.metrics for result in run_jobs(jobs)]
+    return ablation_table(scenarios, jobs, metrics, known, labels)
 
 
 def ablation_jobs(
@@ -130,15 +131,16 @@ def ablation_jobs(
 def ablation_table(
     scenarios: dict[str, Scenario],
     jobs: list[Job],
-    results: list,
+    metrics: list[dict],
     known: dict,
     labels: tuple[str, ...] = (),
 ) -> dict:
-    """{experiment: {stage: {label: metrics}}} from the Results of :func:`ablation_jobs`'
-    ``jobs`` and the ``known`` metrics of the last stage (see :func:`ablation`)."""
+    """{experiment: {stage: {label: metrics}}} from the ``metrics`` of each of
+    :func:`ablation_jobs`' ``jobs`` and the ``known`` metrics of the last stage (see
+    :func:`ablation`)."""
     out = {name: {stage: {} for stage, _ in STAGES} for name in scenarios}
-    for job, result in zip(jobs, results, strict=True):
-        out[job.tags["experiment"]][job.tags["stage"]][job.label] = result.metrics
+    for job, values in zip(jobs, metrics, strict=True):
+        out[job.tags["experiment"]][job.tags["stage"]][job.label] = values
     for name, metrics in known.items():
         if name in out:
             out[name][STAGES[-1][0]] = {

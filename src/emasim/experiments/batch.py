@@ -234,11 +234,14 @@ def _run_group(function, jobs: list[tuple]) -> list:
 @dataclass(frozen=True)
 class Job:
     """One run of a many-run facility: a single-set ``scenario``, the ``label`` its Result
-    carries, and ``tags`` naming where the result belongs (module docstring)."""
+    carries, ``tags`` naming where the result belongs (module docstring), and whether a
+    store keeps its ``trace`` (emasim.experiments.store; without, the run records only what
+    its metrics read)."""
 
     scenario: "Scenario"
     label: str | None = None
     tags: Mapping[str, Any] = field(default_factory=dict)
+    trace: bool = False
 
 
 def run_jobs(jobs: list[Job], client=None, progress=None) -> list[Result]:

@@ -85,14 +85,15 @@ def _row(component: str, metrics: dict, figures: list[str]) -> dict:
     return row
 
 
-def component_tables(jobs: list[Job], results: list, metrics: dict) -> dict[str, list[dict]]:
+def component_tables(jobs: list[Job], measured: list[dict], metrics: dict) -> dict[str, list[dict]]:
     """experiment key ('bench_step') -> rows {component, <figure>: value, true_<figure>:
-    value}: the component runs' headline figures (measured, and of the true angle), with
-    PID's own (``metrics``: experiment name -> label -> metrics) as the last row."""
+    value}: the component runs' headline figures (``measured``: each job's metrics, and of
+    the true angle), with PID's own (``metrics``: experiment name -> label -> metrics) as the
+    last row."""
     tables = {}
-    for job, result in zip(jobs, results, strict=True):
+    for job, values in zip(jobs, measured, strict=True):
         key = job.tags["experiment"].replace("-", "_")
-        row = _row(job.tags["component"], result.metrics, figures_of(key))
+        row = _row(job.tags["component"], values, figures_of(key))
         tables.setdefault(key, []).append(row)
     for key, rows in tables.items():
         pid = metrics[key.replace("_", "-")][PID_LABEL]

@@ -4,8 +4,10 @@ clearance sweep, the ablation of the bench's elements and the hybrid part by par
 the verdict map (emasim.experiments.verdict_map) too, else their latest studies; rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
+import hashlib
 import math
 import time
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -20,19 +22,24 @@ from ..analysis.paper_report import (
     write_report,
 )
 from ..config import hard_limits
-from ..errors import InputError
-from ..naming import RUNS_ROOT, fresh_folder
-from ..output import check_folder, write_folder
+from ..errors import EmasimError, InputError
+from ..jsonio import json_text
+from ..naming import RUNS_ROOT, fresh_folder, slug
+from ..output import check_folder, write_folder, write_new
 from ..scenarios.loader import load_scenario
 from . import verdict_map, wear
 from .ablation import STAGES, ablation_jobs, ablation_table
-from .batch import Job, comparison_of, run_jobs
+from .batch import Job, comparison_of
 from .components import component_jobs, component_tables
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
+from .store import METRICS_FILE, OK, RUN_ID, Store, digest, run_id_of
 from .uncertainty import markdown as uncertainty_table
 
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
+LABELS = (PID_LABEL, HYBRID_LABEL)  # the sets the ablation compares
+STORE_ROOT = RUNS_ROOT / "reproduce"  # beside the reports: each job list's store
+RUNS_TABLE = "runs.parquet"  # in the report: the store's table, one row per run
 
 
 def sweep_jobs() -> list[Job]:
@@ -52,61 +59,117 @@ def sweep_jobs() -> list[Job]:
     return runs
 
 
-def sweep_rows(jobs: list[Job], results: list) -> list[dict]:
-    """The sweep's table from the Results of :func:`sweep_jobs`' ``jobs``: steady RMS error
-    and vibration amplitude of the rudder, per clearance and controller set."""
+def sweep_rows(jobs: list[Job], metrics: list[dict]) -> list[dict]:
+    """The sweep's table from the ``metrics`` of each of :func:`sweep_jobs`' ``jobs``: steady
+    RMS error and vibration amplitude of the rudder, per clearance and controller set."""
     return [
         {
             "clearance_mm": job.tags["clearance_mm"],
             "controller": job.label,
-            "steady_error_rms_deg": result.metrics["steady_error_rms_deg"],
-            "chatter_amplitude_deg": result.metrics["chatter_amplitude_deg"],
+            "steady_error_rms_deg": values["steady_error_rms_deg"],
+            "chatter_amplitude_deg": values["chatter_amplitude_deg"],
         }
-        for job, result in zip(jobs, results, strict=True)
+        for job, values in zip(jobs, metrics, strict=True)
     ]
 
 
-def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict, dict]:
-    """({name: Comparison}, the report's tables) of the ``chosen`` experiments, with the
-    clearance sweep (when cosim-step is among them) and the ablation of the bench ones.
+def _ablated(chosen: dict, with_ablation: bool) -> dict:
+    """The chosen experiments the ablation re-runs stage by stage."""
+    return {n: chosen[n] for n in ABLATED if n in chosen} if with_ablation else {}
 
-    Every run goes into one batch (run_all, longest first), so both cores stay busy to the
-    end instead of waiting at the end of each experiment for its last run. Each comparison's
-    ``simulation_wall_s`` is therefore the whole batch's wall time."""
-    labels = (PID_LABEL, HYBRID_LABEL)
-    ablated = {n: chosen[n] for n in ABLATED if n in chosen} if with_ablation else {}
+
+def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
+    """The reproduction's runs by group: each ``chosen`` experiment's controller sets (their
+    traces kept, for the figures and the report's run folders), the clearance sweep (when
+    cosim-step is among them), the ablation of the bench ones and the hybrid part by part;
+    each job's run id names its group, tags and label."""
+    ablated = _ablated(chosen, with_ablation)
     groups = {
         "comparisons": [
-            Job(variant, label, {"experiment": name})
+            Job(variant, label, {"experiment": name}, trace=True)
             for name, sc in chosen.items()
             for label, variant in sc.variants()
         ],
         "sweep": sweep_jobs() if "cosim-step" in chosen else [],
-        "ablation": ablation_jobs(ablated, ablated, labels=labels),
+        "ablation": ablation_jobs(ablated, ablated, labels=LABELS),
         "components": component_jobs(chosen),
     }
+    return {
+        group: [
+            replace(
+                job,
+                tags={
+                    RUN_ID: slug("-".join([group, *map(str, job.tags.values()), job.label])),
+                    **job.tags,
+                },
+            )
+            for job in jobs
+        ]
+        for group, jobs in groups.items()
+    }
+
+
+def job_store(chosen: dict, with_ablation: bool) -> tuple[Store, dict[str, list[Job]]]:
+    """The reproduction's job store (emasim.experiments.store) and its runs by group
+    (:func:`job_groups`). Its folder, ``runs/reproduce/jobs-<key>``, is named by what it holds:
+    the experiments, the ablation, every run's scenario and the digest of emasim's source, so
+    a reproduction killed part way resumes from its finished runs when run again, and a
+    changed scenario or source starts a store of its own."""
+    from ..numba_cache import source_hash
+    from ..version import __version__
+
+    groups = job_groups(chosen, with_ablation)
+    jobs = [job for group in groups.values() for job in group]
+    record = {
+        "reproduce": {"experiments": list(chosen), "ablation": with_ablation},
+        "runs": len(jobs),
+        "emasim_version": __version__,
+        "emasim_source_sha256": source_hash(),
+        "scenarios_sha256": digest(jobs),
+    }
+    key = hashlib.sha256(json_text(record).encode()).hexdigest()[:12]
+    return Store(STORE_ROOT / f"jobs-{key}", jobs, record), groups
+
+
+def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict, dict, Store]:
+    """({name: Comparison}, the report's tables, the job store they were read from) of the
+    ``chosen`` experiments (:func:`job_groups`).
+
+    Every run goes into one job list (the store runs the longest first), so both cores stay
+    busy to the end instead of waiting at the end of each experiment for its last run. Each
+    comparison's ``simulation_wall_s`` is therefore the whole list's wall time. A run that
+    did not end ok stops the reproduction, naming it (the finished runs stay in the store)."""
+    store, groups = job_store(chosen, with_ablation)
     start = time.perf_counter()
-    results = iter(run_jobs([job for group in groups.values() for job in group], progress=progress))
+    rows = store.run(progress=progress)
     wall_s = time.perf_counter() - start
-    done = {key: [next(results) for _ in group] for key, group in groups.items()}
+    for job in store.jobs:
+        status = rows[run_id_of(job)]["status"]
+        if status != OK:
+            raise EmasimError(
+                f"{run_id_of(job)}: {status} (its folder: {store.run_folder(job)}; the runs "
+                f"that finished stay in {store.folder})"
+            )
+    metrics = {key: [store.metrics_of(rows[run_id_of(j)]) for j in g] for key, g in groups.items()}
     by_name = {name: {} for name in chosen}
-    for job, result in zip(groups["comparisons"], done["comparisons"], strict=True):
-        by_name[job.tags["experiment"]][job.label] = result
+    for job in groups["comparisons"]:
+        by_name[job.tags["experiment"]][job.label] = store.result(job)
     comparisons = {name: comparison_of(chosen[name], by_name[name], wall_s) for name in chosen}
     tables = build_tables({name: c.metrics for name, c in comparisons.items()})
     if groups["sweep"]:
-        tables["clearance_sweep"] = sweep_rows(groups["sweep"], done["sweep"])
+        tables["clearance_sweep"] = sweep_rows(groups["sweep"], metrics["sweep"])
     if groups["components"]:
         tables["components"] = component_tables(
             groups["components"],
-            done["components"],
+            metrics["components"],
             {name: c.metrics for name, c in comparisons.items()},
         )
+    ablated = _ablated(chosen, with_ablation)
     if ablated:
         known = {name: comparisons[name].metrics for name in ablated}
-        stages = ablation_table(ablated, groups["ablation"], done["ablation"], known, labels)
+        stages = ablation_table(ablated, groups["ablation"], metrics["ablation"], known, LABELS)
         tables["ablation"] = ablation_rows(stages)
-    return comparisons, tables
+    return comparisons, tables, store
 
 
 def _hand_figures(comparisons: dict, tables: dict, folder: Path, drawer) -> tuple[dict, list]:
@@ -209,7 +272,9 @@ def reproduce(
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
-    The folder appears complete or not at all, so an interrupted reproduction is simply rerun.
+    The folder appears complete or not at all. Every run goes through the reproduction's job
+    store (:func:`job_store`), whose tidy table the report copies as ``runs.parquet``: an
+    interrupted reproduction, run again, runs only what its store has not finished.
     """
     from ..analysis.figure_process import DrawHere, figure_writer
 
@@ -221,7 +286,7 @@ def reproduce(
     chosen = {
         e.scenario: load_scenario(e.scenario) for e in EXPERIMENTS if not only or e.scenario in only
     }
-    comparisons, tables = _run_experiments(chosen, with_ablation, progress)
+    comparisons, tables, store = _run_experiments(chosen, with_ablation, _counted(progress))
     if "headline" in tables:
         if robustness_runs is not None:
             tables["robustness"] = run_robustness(
@@ -239,6 +304,7 @@ def reproduce(
     def write(folder: Path) -> None:
         (folder / "figures").mkdir()
         (folder / "runs").mkdir()
+        write_new(folder / RUNS_TABLE, (store.folder / METRICS_FILE).read_bytes())
         # the figure process draws the heavy figures while this one writes the runs and the
         # text, then draws the light ones
         with figure_writer() as drawer:

@@ -42,7 +42,8 @@ from ..analysis.judged import (
     PID_LABEL,
 )
 from ..naming import RUNS_ROOT
-from .study import OK, StudySpec, read_table, run_study
+from .store import OK, read_table
+from .study import StudySpec, run_study
 from .uncertainty import COLUMNS, SEED, UNCERTAINTY
 
 SCENARIOS = ("bench-step", "bench-sine")

@@ -24,7 +24,8 @@ import math
 from ..analysis.judged import HYBRID_LABEL
 from ..plant.presets import LOADER_RATED_TORQUE_NM, absolute_rudder_encoder, ttl_rudder_encoder
 from .robustness import BASELINES, ROOT, SCENARIOS, figures, study_key
-from .study import OK, StudySpec, complete_tables, run_study
+from .store import OK
+from .study import StudySpec, complete_tables, run_study
 
 PRELOAD = "plant.load_motor.preload_Nm"
 CLEARANCE = "plant.linkage.hinge_clearance_mm"

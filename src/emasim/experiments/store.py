@@ -1,0 +1,361 @@
+"""The job store: a list of runs (:class:`.batch.Job`) in one resumable folder, with one tidy
+table. Studies (robustness, wear, verdict maps) and the reproduction (the paper's comparisons,
+the clearance sweep, the ablation, the hybrid part by part) run their jobs on it. Its folder
+holds
+
+* the record file (``study.json`` for a study, ``jobs.json`` for the reproduction): what the
+  store holds, the facility's description of its job list with the emasim version and a
+  SHA-256 of every run's fully resolved scenario (:func:`digest`);
+* ``runs/<run_id>/``: one folder per finished run, written by the worker the moment the run
+  ends, atomically: ``scenario.toml`` (run it again with ``emasim run``), ``metrics.json``,
+  ``meta.json`` (with ``job``: the run id, the label and the tags) and, for a job that keeps
+  its trace (``Job.trace``), ``result.parquet`` (read back by :meth:`Store.result`). Without
+  a trace a run records only what its metrics read, and its ``scenario.toml`` says so
+  (``solver.record_signals = []``);
+* ``metrics.parquet``: the tidy table, one row per finished run: ``run_id``, ``label``, every
+  tag, ``status`` ('ok', 'diverged: ...' or 'failed: ...', a run that failed for any other
+  reason: a rule checked only as it ran, a folder that could not be written) and every
+  metric; rewritten atomically as runs finish (at most every TABLE_EVERY_S, and at the end);
+* ``workers.log``: what the worker processes of a LocalCluster print (warnings, and each
+  failed run's traceback), never the user's terminal.
+
+The run folders are the record: a killed client or worker loses no finished run, and the same
+job list in the same folder resumes, running only what has no finished folder yet, a failed
+run, or a damaged one (a run folder of emasim's that lost a file is replaced; a killed worker's
+runs are re-run by Dask on another worker; a group of runs sent again skips the runs it
+finished before). A folder holding another record is refused: a store is never replaced. One
+client at a time holds a store (a lock on its record file). The workers write the run folders
+themselves: on a cluster of several machines the folder must be on a file system they share.
+"""
+
+import contextlib
+import fcntl
+import hashlib
+import io
+import json
+import logging
+import os
+import time
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import EmasimError, OutputError, SimulationDiverged
+from ..jsonio import json_text
+from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
+from .batch import Job
+
+METRICS_FILE = "metrics.parquet"
+RUNS_FOLDER = "runs"
+LOG_FILE = "workers.log"
+RUN_ID = "run_id"  # every job's tag: its run folder's name
+ROW_KEYS = (RUN_ID, "label", "status")
+TABLE_TAG = b"emasim study metrics"  # in metrics.parquet's schema metadata: the file is ours
+OK = "ok"
+DIVERGED = "diverged"
+FAILED = "failed"
+FAILURE_LOG = "emasim_worker"  # not under "emasim": the command line's console never shows it
+logging.getLogger(FAILURE_LOG).addHandler(logging.NullHandler())  # a LogToFile worker: its file
+TABLE_EVERY_S = 1.0  # metrics.parquet is rewritten at most this often while runs finish
+
+
+def run_id_of(job: Job) -> str:
+    """A job's run id (its run folder's name, its row's key)."""
+    return job.tags[RUN_ID]
+
+
+def digest(jobs: Sequence[Job]) -> str:
+    """SHA-256 of every job's fully resolved scenario, in order, and the emasim version."""
+    from ..version import __version__
+
+    sha = hashlib.sha256()
+    for job in jobs:
+        sha.update(json.dumps(job.scenario.model_dump(mode="json"), sort_keys=True).encode())
+    sha.update(__version__.encode())
+    return sha.hexdigest()
+
+
+@dataclass
+class Store:
+    """A job list's folder (module docstring). ``record`` says what it holds (the record
+    file's content, ``record_file`` its name); ``columns`` are the table's leading columns
+    (default: ROW_KEYS, then the tags in the jobs' order); ``name`` is what its refusals
+    call it (``--out FOLDER`` for a study), ``refusal`` what they say of another record."""
+
+    folder: Path
+    jobs: list[Job]
+    record: dict
+    record_file: str = "jobs.json"
+    columns: tuple[str, ...] = ()
+    name: str = ""
+    refusal: str = "holds other runs; it is never replaced: choose another folder"
+
+    def __post_init__(self):
+        self.folder = Path(self.folder)
+        if not self.columns:
+            tags = dict.fromkeys(k for job in self.jobs for k in job.tags if k != RUN_ID)
+            self.columns = (*ROW_KEYS, *tags)
+        self.name = self.name or str(self.folder)
+        self._order = {run_id_of(job): i for i, job in enumerate(self.jobs)}
+        if len(self._order) != len(self.jobs):
+            raise ValueError("two jobs of a store share a run id")
+
+    def open(self) -> None:
+        """Make the folder, or check that the one there holds this very record."""
+        record = json.loads(json_text(self.record))
+        path = self.folder / self.record_file
+        if is_emasim_folder(self.folder) and path.is_file():
+            try:
+                there = json.loads(path.read_text())
+            except (OSError, ValueError):
+                there = None
+            if there == record:
+                return
+            raise OutputError(f"{self.name}: {self.refusal}")
+        check_folder(self.folder, force=False)
+
+        def write(tmp: Path) -> None:
+            write_new(tmp / self.record_file, json_text(record))
+            write_new(tmp / LOG_FILE, "")
+            (tmp / RUNS_FOLDER).mkdir()
+
+        write_folder(self.folder, write, kind="jobs")
+
+    @contextlib.contextmanager
+    def holding(self):
+        """Hold the store's lock (flock on its record file: writing into the folder locks the
+        folder itself) or refuse: one client at a time."""
+        fd = os.open(self.folder / self.record_file, os.O_RDONLY)
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise OutputError(f"{self.name}: another emasim process is running it") from None
+            yield
+        finally:
+            os.close(fd)
+
+    def run_folder(self, job: Job) -> Path:
+        return (self.folder / RUNS_FOLDER / run_id_of(job)).absolute()
+
+    def finished(self) -> dict[str, dict]:
+        """run_id -> row of each of the jobs' finished run folders (not a failed one)."""
+        rows = finished_rows(self.folder)
+        return {
+            run_id: row
+            for run_id, row in rows.items()
+            if run_id in self._order and not is_failed(row)
+        }
+
+    def run(
+        self,
+        client=None,
+        progress: Callable[[int, int], None] | None = None,
+        trust_fmu: bool = False,
+        cluster: Callable | None = None,
+    ) -> dict[str, dict]:
+        """Open the store, run every job it has no finished run of, and return run_id -> row
+        of every job. ``client``: a ``dask.distributed.Client`` to run on, else the one
+        ``cluster()`` opens (a context manager; default: threads in this process).
+        ``progress(done, total)`` is called as runs finish."""
+        from .. import numba_cache
+        from .batch import dask_client, map_runs
+
+        self.open()
+        with self.holding():
+            rows = self.finished()
+            pending = [job for job in self.jobs if run_id_of(job) not in rows]
+            pending.sort(key=lambda job: -job.scenario.duration_s)  # the last to end is short
+            total = len(self.jobs)
+            if progress is not None:
+                progress(len(rows), total)
+            self.write_table(rows)
+            written = [time.monotonic()]
+
+            def on_done(_, row):
+                rows[row[RUN_ID]] = row
+                if time.monotonic() - written[0] >= TABLE_EVERY_S:
+                    self.write_table(rows)
+                    written[0] = time.monotonic()
+                if progress is not None:
+                    progress(len(rows), total)
+
+            if pending:
+                calls = [(job, self.run_folder(job), trust_fmu) for job in pending]
+                opened = cluster() if cluster else dask_client(processes=False)
+                with contextlib.nullcontext(client) if client else opened as used:
+                    try:  # one run first only to compile: with a warm cache, all at once
+                        cold = numba_cache.is_cold()
+                        map_runs(
+                            run_and_write, calls, used, on_done, first_alone=cold, grouped=True
+                        )
+                    finally:
+                        self.write_table(rows)  # every run that finished
+        return rows
+
+    def metrics_of(self, row: dict) -> dict:
+        """A row's metrics: every value but the run's keys and tags."""
+        return {k: v for k, v in row.items() if k not in self.columns}
+
+    def frame(self, rows: dict[str, dict]):
+        """The rows as a DataFrame in the jobs' order, one column per key (missing: NaN)."""
+        import pandas as pd
+
+        ordered = sorted(rows.values(), key=lambda row: self._order[row[RUN_ID]])
+        metrics = dict.fromkeys(k for row in ordered for k in row if k not in self.columns)
+        return pd.DataFrame(ordered, columns=[*self.columns, *metrics])
+
+    def write_table(self, rows: dict[str, dict]) -> None:
+        """Write metrics.parquet atomically (pyarrow; the schema metadata tags it as ours)."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(self.frame(rows), preserve_index=False)
+        table = table.replace_schema_metadata(
+            {**(table.schema.metadata or {}), b"emasim": TABLE_TAG}
+        )
+        buffer = io.BytesIO()
+        pq.write_table(table, buffer)
+        write_file(
+            self.folder / METRICS_FILE,
+            buffer.getvalue(),
+            force=True,
+            is_ours=_is_table,
+            what="--out",
+        )
+
+    def result(self, job: Job):
+        """The Result of a finished job that kept its trace (emasim.sim.result.Result.load)."""
+        from ..sim.result import Result
+
+        return Result.load(self.run_folder(job))
+
+
+def run_and_write(job: Job, folder: Path, trust_fmu: bool = False) -> dict:
+    """A worker's task: simulate one run, write its run folder, return its row. A run whose
+    folder is finished already (a task Dask runs again after a worker was lost) is read, not
+    run again. A run that diverges or fails for any other reason is a row that says so
+    (``status``: 'diverged: ...' or 'failed: ...', one line), in a folder marked so where it
+    can be written: it never stops the others. A failed or damaged folder of emasim's there
+    is replaced (never one holding a file emasim did not write)."""
+    from .runs import run_scenario
+
+    finished = _finished_row(folder)
+    if finished is not None and finished[RUN_ID] == run_id_of(job) and not is_failed(finished):
+        return finished
+    replace = os.path.lexists(folder)  # failed or damaged: write_folder refuses what is not ours
+    record = {RUN_ID: run_id_of(job), "label": job.label, "tags": _tags(job)}
+    scenario = job.scenario if job.trace else metrics_only(job.scenario)
+    try:
+        result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
+        result.meta["job"] = record
+        write = lambda tmp: result.write_files(tmp, plot=False, traces=job.trace)  # noqa: E731
+        write_folder(folder, write, force=replace)
+        return _row(record, OK, result.metrics)
+    except SimulationDiverged as err:
+        status = f"{DIVERGED}: {one_line(err)}"
+    except Exception as err:  # any other failure is this run's, not the store's
+        status = f"{FAILED}: {reason(err)}"
+        logging.getLogger(FAILURE_LOG).error(f"{run_id_of(job)} {status}\n{traceback.format_exc()}")
+    with contextlib.suppress(Exception):  # a folder that cannot be written: the row says why
+        _write_failed(folder, job, record, status, replace)
+    return _row(record, status, {})
+
+
+def _tags(job: Job) -> dict:
+    return {k: v for k, v in job.tags.items() if k != RUN_ID}
+
+
+def metrics_only(scenario):
+    """``scenario`` recording only what its metrics read (solver.record_signals empty): a run
+    whose traces are not kept holds none of the others in memory either."""
+    return scenario.model_copy(
+        update={"solver": scenario.solver.model_copy(update={"record_signals": []})}
+    )
+
+
+def one_line(err: BaseException, limit: int = 300) -> str:
+    """An error's message as one line of at most ``limit`` characters."""
+    text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def reason(err: BaseException) -> str:
+    """Why a run failed, in one line: an emasim error's message, an OSError's cause and
+    file, else the exception's type and message."""
+    if isinstance(err, OSError) and not isinstance(err, OutputError) and err.strerror:
+        where = f" ({err.filename})" if err.filename else ""
+        return one_line(f"cannot write the run folder: {err.strerror}{where}")
+    if isinstance(err, EmasimError):
+        return one_line(err)
+    return one_line(f"{type(err).__name__}: {one_line(err)}")
+
+
+def is_failed(row: dict) -> bool:
+    """A row of a run that failed (not diverged): run again when the store resumes."""
+    return str(row.get("status", "")).startswith(FAILED)
+
+
+def _write_failed(folder: Path, job: Job, record: dict, status: str, replace: bool) -> None:
+    """The folder of a run that diverged or failed: its meta (with ``status``) and scenario."""
+    from ..sim.result import write_records
+    from .runs import meta_of
+
+    meta = meta_of(job.scenario, float("nan")) | {"label": job.label, "job": record}
+    meta["status"] = status
+    resolved = job.scenario.model_dump(mode="json", exclude_none=True)
+    write_folder(folder, lambda tmp: write_records(tmp, {}, meta, resolved), force=replace)
+
+
+def _row(record: dict, status: str, metrics: dict) -> dict:
+    row = {RUN_ID: record[RUN_ID], "label": record["label"], **record["tags"], "status": status}
+    return row | dict(metrics)
+
+
+def finished_rows(folder: Path) -> dict[str, dict]:
+    """run_id -> row of every finished run folder of a store (its record, not the table)."""
+    runs = Path(folder) / RUNS_FOLDER
+    found = (_finished_row(run) for run in runs.iterdir()) if runs.is_dir() else ()
+    return {row[RUN_ID]: row for row in found if row is not None}
+
+
+def _finished_row(run: Path) -> dict | None:
+    """The row of a finished run folder, from its record; None for anything else (no folder,
+    a killed run's temporary, or not ours)."""
+    if not is_emasim_folder(run):
+        return None
+    try:
+        meta = json.loads((run / "meta.json").read_text())
+        metrics = json.loads((run / "metrics.json").read_text())
+        return _row(meta["job"], meta.get("status", OK), metrics)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def _is_table(path: Path) -> bool:
+    import pyarrow.parquet as pq
+
+    try:
+        return (pq.read_schema(path).metadata or {}).get(b"emasim") == TABLE_TAG
+    except (OSError, ValueError, TypeError):
+        return False
+
+
+def status_counts(table) -> dict[str, int]:
+    """How many runs of a store's table are ok, diverged and failed."""
+    kinds = [str(s).split(":", 1)[0] for s in table["status"]] if len(table) else []
+    return {kind: kinds.count(kind) for kind in (OK, DIVERGED, FAILED)}
+
+
+def first_reasons(table, n: int = 3) -> list[str]:
+    """``run_id status`` of the first ``n`` runs that are not ok, in the jobs' order."""
+    bad = table[table["status"] != OK] if len(table) else table
+    return [f"{row.run_id} {row.status}" for row in bad.head(n).itertuples()]
+
+
+def read_table(folder: str | Path):
+    """A store's metrics.parquet as a pandas DataFrame."""
+    import pandas as pd
+
+    return pd.read_parquet(Path(folder) / METRICS_FILE)

@@ -1,0 +1,129 @@
+"""The job store: a job list's runs in one resumable folder, with one tidy table."""
+
+import json
+import os
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from emasim.errors import OutputError
+from emasim.experiments import runs
+from emasim.experiments.batch import Job
+from emasim.experiments.reproduction import RUNS_TABLE, job_store, reproduce
+from emasim.experiments.store import METRICS_FILE, RUN_ID, RUNS_FOLDER, Store, digest, read_table
+from emasim.scenarios.loader import load_scenario
+
+SHORT = ["duration_s=0.04"]
+
+
+def jobs_of(seeds, trace_first=True):
+    """speed-step with PI at each seed, tagged with it; the first keeps its trace."""
+    jobs = []
+    for i, seed in enumerate(seeds):
+        scenario = load_scenario("speed-step", label="PI", settings=[*SHORT, f"seed={seed}"])
+        tags = {RUN_ID: f"pi-{seed}", "seed": seed}
+        jobs.append(Job(scenario, "PI", tags, trace=trace_first and i == 0))
+    return jobs
+
+
+def counting(monkeypatch) -> list:
+    """Count the runs simulated from now on (run_and_write reads runs.run_scenario)."""
+    ran, real = [], runs.run_scenario
+
+    def run_scenario(scenario, **kwargs):
+        ran.append(scenario.seed)
+        return real(scenario, **kwargs)
+
+    monkeypatch.setattr(runs, "run_scenario", run_scenario)
+    return ran
+
+
+def test_the_table_has_a_row_per_run_with_its_tags_status_and_metrics(tmp_path):
+    jobs = jobs_of([1, 2, 3])
+    store = Store(tmp_path / "s", jobs, {"what": "three seeds"})
+    rows = store.run()
+    table = read_table(tmp_path / "s")
+    assert list(table.columns[:4]) == ["run_id", "label", "status", "seed"]
+    assert list(table["run_id"]) == ["pi-1", "pi-2", "pi-3"] and (table["status"] == "ok").all()
+    for job in jobs:  # every metric is the run's own, alone
+        alone = runs.run_scenario(job.scenario, label="PI").metrics
+        assert store.metrics_of(rows[job.tags[RUN_ID]]) == pytest.approx(alone, nan_ok=True)
+    assert table.equals(store.frame(rows))
+
+
+def test_a_kept_trace_reads_back_as_the_run_and_the_others_keep_none(tmp_path):
+    jobs = jobs_of([1, 2])
+    store = Store(tmp_path / "s", jobs, {"what": "two seeds"})
+    store.run()
+    alone = runs.run_scenario(jobs[0].scenario, label="PI")
+    kept = store.result(jobs[0])
+    assert kept.columns == alone.columns and np.array_equal(kept.data, alone.data, equal_nan=True)
+    assert kept.metrics == pytest.approx(alone.metrics, nan_ok=True)
+    assert not (tmp_path / "s" / RUNS_FOLDER / "pi-2" / "result.parquet").exists()
+
+
+def test_a_killed_job_list_resumes_with_only_the_runs_it_lacks(tmp_path, monkeypatch):
+    jobs = jobs_of([1, 2, 3, 4])
+    full = Store(tmp_path / "full", jobs, {"what": "four seeds"})
+    whole = full.frame(full.run())
+    # the folder as a kill leaves it: two runs finished, the table behind, a temporary
+    shutil.copytree(tmp_path / "full", tmp_path / "cut", symlinks=True)
+    for name in ("pi-2", "pi-4"):
+        shutil.rmtree(tmp_path / "cut" / RUNS_FOLDER / name)
+    (tmp_path / "cut" / METRICS_FILE).unlink()
+    dead = tmp_path / "cut" / RUNS_FOLDER / ".pi-2.tmp-999999-0123abcd"
+    dead.mkdir()
+    (dead / ".emasim-result").write_text('{"kind": "run", "files": []}')
+    ran = counting(monkeypatch)
+    told = []
+    cut = Store(tmp_path / "cut", jobs, {"what": "four seeds"})
+    resumed = cut.frame(cut.run(progress=lambda done, total: told.append((done, total))))
+    assert sorted(ran) == [2, 4] and told[0] == (2, 4) and told[-1] == (4, 4)
+    assert resumed.equals(whole) and read_table(tmp_path / "cut").equals(whole)
+    assert not dead.exists()
+
+
+def test_a_folder_holding_other_runs_is_refused_and_left_as_it_was(tmp_path):
+    Store(tmp_path / "s", jobs_of([1]), {"what": "seed 1"}).run()
+    before = sorted(p.name for p in (tmp_path / "s").rglob("*"))
+    with pytest.raises(OutputError, match="holds other runs"):
+        Store(tmp_path / "s", jobs_of([1]), {"what": "seed 1, again"}).run()
+    assert sorted(p.name for p in (tmp_path / "s").rglob("*")) == before
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    with pytest.raises(OutputError, match="emasim did not write"):
+        Store(mine, jobs_of([1]), {}).run()
+    assert os.listdir(mine) == ["notes.txt"]
+
+
+def test_two_jobs_sharing_a_run_id_are_refused():
+    job = jobs_of([1])[0]
+    with pytest.raises(ValueError, match="share a run id"):
+        Store("unused", [job, job], {})
+
+
+def test_the_digest_follows_every_scenario():
+    assert digest(jobs_of([1, 2])) == digest(jobs_of([1, 2]))
+    assert digest(jobs_of([1, 2])) != digest(jobs_of([1, 3]))
+
+
+def test_a_killed_reproduction_resumes_from_its_store(tmp_path, monkeypatch):
+    """A reproduction's runs go through its store: run again after a kill, it simulates only
+    what the store lacks, and its report (tables and the tidy runs.parquet) is the same."""
+    monkeypatch.chdir(tmp_path)  # the store lives under runs/reproduce/
+    first = reproduce(tmp_path / "first", only=["speed-step"], with_ablation=False)
+    store, _ = job_store({"speed-step": load_scenario("speed-step")}, with_ablation=False)
+    assert store.folder.is_dir() and len(store.jobs) >= 2
+    table = read_table(store.folder)
+    assert pd.read_parquet(first / RUNS_TABLE).equals(table) and (table["status"] == "ok").all()
+    lost = sorted((store.folder / RUNS_FOLDER).iterdir())[0]
+    shutil.rmtree(lost)  # a run the kill left unfinished
+    ran = counting(monkeypatch)
+    again = reproduce(tmp_path / "again", only=["speed-step"], with_ablation=False)
+    assert len(ran) == 1
+    tables = [json.loads((f / "tables.json").read_text()) for f in (first, again)]
+    assert tables[0] == tables[1]
+    assert pd.read_parquet(again / RUNS_TABLE).equals(table)
