@@ -28,6 +28,7 @@
 import csv
 import json
 import math
+import shutil
 from pathlib import Path
 
 import control
@@ -41,6 +42,7 @@ from emasim.analysis.frequency import first_crossing, gain_dB
 from emasim.cli import app
 from emasim.errors import InputError
 from emasim.experiments import acceptance as ac
+from emasim.experiments.store import read_table
 from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario
 
@@ -346,3 +348,50 @@ def test_the_bench_under_a_standing_load_gets_its_linear_model():
     assert {(r.input, r.output) for r in models} == {(i, o) for i in ac.INPUTS for o in ac.OUTPUTS}
     (command,) = [r for r in models if (r.input, r.output) == ("position_command", "position")]
     assert abs(command.h[0]) == pytest.approx(1.0, abs=0.02)  # 1 Hz, well inside the band
+
+
+def test_a_measurement_reads_back_exactly():
+    value = {
+        "responses": {"position": complex(0.5, -1e-300), "iq_A": np.array([1 + 2j, np.nan])},
+        "loop": (np.array([0.1, -np.inf]), np.array([1.0, 2.0], dtype=np.float32)),
+        "threshold_m": None,
+        "lower_bound": True,
+        "rate_m_s": float("nan"),
+        "count": [1, 2.5, "x"],
+    }
+    back = ac.decoded(json.loads(json.dumps(ac.encoded(value))))
+    assert (
+        back.keys() == value.keys()
+        and back["responses"]["position"] == value["responses"]["position"]
+    )
+    h = back["responses"]["iq_A"]
+    assert h.dtype == np.complex128 and np.array_equal(h, value["responses"]["iq_A"], True)
+    assert isinstance(back["loop"], tuple) and back["loop"][1].dtype == np.float32
+    assert np.array_equal(back["loop"][0], value["loop"][0])
+    assert back["threshold_m"] is None and back["lower_bound"] is True
+    assert math.isnan(back["rate_m_s"]) and back["count"] == [1, 2.5, "x"]
+
+
+def test_a_killed_battery_resumes_from_its_store_with_the_same_datasheet(tmp_path, monkeypatch):
+    """The battery's runs go through its job store: run again after a kill, it measures only
+    the runs the store lacks, and its figures and curves are the same, exactly."""
+    monkeypatch.setattr(ac, "STORE_ROOT", tmp_path)
+    scenario = load_scenario("position-step", settings=LINEAR_PI)
+    battery = ac.Battery(**SHORT, **WITHIN_LIMITS)
+    first = ac.run_acceptance(scenario, labels=["PI"], battery=battery)
+    (store,) = tmp_path.iterdir()
+    table = read_table(store)
+    assert len(table) == first.meta["runs"] and (table["status"] == "ok").all()
+    assert {"point", "point_Hz", "hysteresis_m", "stall_force_N"} <= set(table.columns)
+    lost = sorted((store / "runs").iterdir())[:3]
+    for run in lost:  # runs the kill left unfinished
+        shutil.rmtree(run)
+    measured, real = [], ac.measure
+    monkeypatch.setattr(ac, "measure", lambda job, *a: measured.append(job) or real(job, *a))
+    again = ac.run_acceptance(scenario, labels=["PI"], battery=battery)
+    assert list(tmp_path.iterdir()) == [store] and len(measured) == len(lost)
+    assert again.figures == first.figures
+    assert again.curves["PI"]["loop"][1].tobytes() == first.curves["PI"]["loop"][1].tobytes()
+    for a, b in zip(again.curves["PI"]["responses"], first.curves["PI"]["responses"], strict=True):
+        assert (a.input, a.excitation, a.output) == (b.input, b.excitation, b.output)
+        assert np.array_equal(a.h, b.h) and np.array_equal(a.frequencies_Hz, b.frequencies_Hz)

@@ -49,14 +49,19 @@ standing loads, a load motor's preload, stay) and its own command and load:
 The output is the position the loop controls, noise-free, in rod millimetres: the rod for 'rod'
 and 'motor' feedback (with motor feedback the backlash and the compliance are outside the loop,
 and show), the rudder angle through the rigid kinematics for 'rudder' feedback. Rod forces are
-positive when they oppose extension. Runs go through :func:`emasim.experiments.batch.map_runs`
-(threads in this process by default: the compiled loop releases the GIL).
+positive when they oppose extension. The runs are a job list on the job store
+(:mod:`emasim.experiments.store`, ``runs/acceptance/jobs-<key>``: threads in this process by
+default, the compiled loop releasing the GIL): each run's measurement is kept in its run folder
+(``measured.json``) and its numbers in the store's table, so a battery killed part way resumes
+from the runs it finished when run again.
 """
 
+import json
 import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import control
@@ -65,10 +70,13 @@ import numpy as np
 from ..analysis import frequency as fr
 from ..analysis.metrics import rise_time
 from ..errors import InputError
+from ..jsonio import json_text
 from ..linear import linearize
+from ..naming import RUNS_ROOT, slug
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
 from .batch import Job
+from .store import RUN_ID, Measured, keyed
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -473,7 +481,10 @@ MEASURES = {
 
 
 MEASURE = "measure"  # a battery job's tag: which of MEASURES reads its run
-POINT = "point"  # ... and what it measures, ("small", f), ("triangle",), ...
+# ... and what it measures, the point: ("small", f), ("chirp", "large"), ("triangle",), ...
+POINT, POINT_HZ, POINT_OF = "point", "point_Hz", "point_of"  # its parts, each a column
+MEASURED_FILE = "measured.json"  # in each run folder of the store: the whole measurement
+STORE_ROOT = RUNS_ROOT / "acceptance"
 
 
 def _job(kind: str, scenario: Scenario) -> Job:
@@ -484,6 +495,66 @@ def _job(kind: str, scenario: Scenario) -> Job:
 def measure(job: Job, drive: "Drive", battery: "Battery") -> dict:
     """Run a battery job and read it (its MEASURES entry)."""
     return MEASURES[job.tags[MEASURE]](job.scenario, drive, battery)
+
+
+def measure_point(battery: "Battery", job: Job) -> Measured:
+    """The store's ``measure`` of a battery job: its numbers for the table and the whole
+    measurement (:func:`encoded`) for its run folder."""
+    values = measure(job, Drive.of(job.scenario), battery)
+    numbers = {
+        k: v for k, v in values.items() if v is None or isinstance(v, bool | int | float | str)
+    }
+    return Measured(numbers, {MEASURED_FILE: json.dumps(encoded(values))})
+
+
+def point_tags(point: tuple) -> dict:
+    """A point's tags, each a plain column: its name, its frequency or what it sweeps."""
+    name, *rest = point
+    detail = rest[0] if rest else None
+    hz = detail if isinstance(detail, float) else None
+    return {POINT: name, POINT_HZ: hz, POINT_OF: detail if isinstance(detail, str) else None}
+
+
+def point_of(job: Job) -> tuple:
+    """The point a battery job measures, from its tags (:func:`point_tags`)."""
+    detail = job.tags[POINT_HZ] if job.tags[POINT_HZ] is not None else job.tags[POINT_OF]
+    return (job.tags[POINT],) if detail is None else (job.tags[POINT], detail)
+
+
+def encoded(value):
+    """``value`` (a measurement: dicts, tuples, lists, numbers, complex numbers, numpy arrays)
+    as JSON data that :func:`decoded` turns back exactly: a complex number, an array, a
+    tuple and a float that is not finite become one-key objects naming what they are."""
+    if isinstance(value, dict):
+        return {key: encoded(v) for key, v in value.items()}
+    if isinstance(value, tuple):
+        return {"tuple": [encoded(v) for v in value]}
+    if isinstance(value, list):
+        return [encoded(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return {"array": encoded(value.tolist()), "dtype": value.dtype.str}
+    if isinstance(value, complex | np.complexfloating):
+        return {"complex": [encoded(float(value.real)), encoded(float(value.imag))]}
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else {"float": repr(float(value))}
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def decoded(value):
+    """The value :func:`encoded` made ``value`` of."""
+    if isinstance(value, list):
+        return [decoded(v) for v in value]
+    if not isinstance(value, dict):
+        return value
+    if "tuple" in value:
+        return tuple(decoded(v) for v in value["tuple"])
+    if "array" in value:
+        return np.array(decoded(value["array"]), dtype=np.dtype(value["dtype"]))
+    if "complex" in value:
+        return complex(*decoded(value["complex"]))
+    if "float" in value:
+        return float(value["float"])
+    return {key: decoded(v) for key, v in value.items()}
 
 
 # --- the battery ----------------------------------------------------------------------------
@@ -704,6 +775,21 @@ def check_acceptance(scenario: Scenario, labels: list[str] | None = None) -> Non
         )
 
 
+def battery_store(scenario: Scenario, chosen: list[str], battery: "Battery"):
+    """The job store of the battery's runs for the ``chosen`` controller sets (each tagged
+    with what measures it and its point), under ``runs/acceptance/``, named by what it holds
+    (emasim.experiments.store.keyed)."""
+    variants = dict(scenario.variants())
+    jobs = []
+    for label in chosen:
+        for point, job in plan_battery(variants[label], battery):
+            run_id = slug("-".join(map(str, [label, *point])))
+            jobs.append(Job(job.scenario, label, {RUN_ID: run_id, **job.tags, **point_tags(point)}))
+    record = {"acceptance": {"scenario": scenario.name, "labels": chosen}}
+    record["battery"] = json.loads(json_text(asdict(battery)))
+    return keyed(STORE_ROOT, jobs, record, measure=partial(measure_point, battery))
+
+
 def run_acceptance(
     scenario: Scenario,
     labels: list[str] | None = None,
@@ -712,38 +798,23 @@ def run_acceptance(
     progress: Callable[[int, int], None] | None = None,
 ) -> Acceptance:
     """Run the battery for each controller set of ``scenario`` (or those named in ``labels``)
-    in parallel; ``progress(done, total)`` after each run."""
-    from .batch import dask_client, map_runs
-
+    in parallel on its job store (:func:`battery_store`); ``progress(done, total)`` after
+    each run."""
     battery = battery or Battery()
     check_acceptance(scenario, labels)
     variants = dict(scenario.variants())
     chosen = list(labels or variants)
-    drives = {label: Drive.of(variants[label]) for label in chosen}
-    jobs = [
-        Job(job.scenario, label, {**job.tags, POINT: point})
-        for label in chosen
-        for point, job in plan_battery(variants[label], battery)
-    ]
-    done = [0]
-
-    def on_done(_, __):
-        done[0] += 1
-        if progress is not None:
-            progress(done[0], len(jobs))
-
+    store = battery_store(scenario, chosen, battery)
     start = time.perf_counter()
-    calls = [(job, drives[job.label], battery) for job in jobs]
-    if client is None:
-        with dask_client(processes=False) as local:
-            values = map_runs(measure, calls, local, on_done)
-    else:
-        values = map_runs(measure, calls, client, on_done)
+    rows = store.run(client, progress)
     wall = time.perf_counter() - start
+    store.require_ok(rows)
+    values = [decoded(json.loads(store.read(job, MEASURED_FILE))) for job in store.jobs]
+    jobs = store.jobs
     figures, curves, linear = {}, {}, {}
     for label in chosen:
         measured = {
-            job.tags[POINT]: value
+            point_of(job): value
             for job, value in zip(jobs, values, strict=True)
             if job.label == label
         }

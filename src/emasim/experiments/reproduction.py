@@ -4,7 +4,6 @@ clearance sweep, the ablation of the bench's elements and the hybrid part by par
 the verdict map (emasim.experiments.verdict_map) too, else their latest studies; rendered by
 :mod:`emasim.analysis.paper_report` into one report folder."""
 
-import hashlib
 import math
 import time
 from dataclasses import replace
@@ -22,8 +21,7 @@ from ..analysis.paper_report import (
     write_report,
 )
 from ..config import hard_limits
-from ..errors import EmasimError, InputError
-from ..jsonio import json_text
+from ..errors import InputError
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import check_folder, write_folder, write_new
 from ..scenarios.loader import load_scenario
@@ -33,7 +31,7 @@ from .batch import Job, comparison_of
 from .components import component_jobs, component_tables
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
-from .store import METRICS_FILE, OK, RUN_ID, Store, digest, run_id_of
+from .store import METRICS_FILE, RUN_ID, Store, keyed, run_id_of
 from .uncertainty import markdown as uncertainty_table
 
 ABLATED = ("bench-step", "bench-sine")  # the experiments the ablation re-runs stage by stage
@@ -110,25 +108,13 @@ def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
 
 
 def job_store(chosen: dict, with_ablation: bool) -> tuple[Store, dict[str, list[Job]]]:
-    """The reproduction's job store (emasim.experiments.store) and its runs by group
-    (:func:`job_groups`). Its folder, ``runs/reproduce/jobs-<key>``, is named by what it holds:
-    the experiments, the ablation, every run's scenario and the digest of emasim's source, so
-    a reproduction killed part way resumes from its finished runs when run again, and a
-    changed scenario or source starts a store of its own."""
-    from ..numba_cache import source_hash
-    from ..version import __version__
-
+    """The reproduction's job store and its runs by group (:func:`job_groups`): under
+    ``runs/reproduce/``, named by what it holds (emasim.experiments.store.keyed), so a
+    reproduction killed part way resumes from its finished runs when run again."""
     groups = job_groups(chosen, with_ablation)
     jobs = [job for group in groups.values() for job in group]
-    record = {
-        "reproduce": {"experiments": list(chosen), "ablation": with_ablation},
-        "runs": len(jobs),
-        "emasim_version": __version__,
-        "emasim_source_sha256": source_hash(),
-        "scenarios_sha256": digest(jobs),
-    }
-    key = hashlib.sha256(json_text(record).encode()).hexdigest()[:12]
-    return Store(STORE_ROOT / f"jobs-{key}", jobs, record), groups
+    record = {"reproduce": {"experiments": list(chosen), "ablation": with_ablation}}
+    return keyed(STORE_ROOT, jobs, record), groups
 
 
 def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict, dict, Store]:
@@ -143,13 +129,7 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
     start = time.perf_counter()
     rows = store.run(progress=progress)
     wall_s = time.perf_counter() - start
-    for job in store.jobs:
-        status = rows[run_id_of(job)]["status"]
-        if status != OK:
-            raise EmasimError(
-                f"{run_id_of(job)}: {status} (its folder: {store.run_folder(job)}; the runs "
-                f"that finished stay in {store.folder})"
-            )
+    store.require_ok(rows)
     metrics = {key: [store.metrics_of(rows[run_id_of(j)]) for j in g] for key, g in groups.items()}
     by_name = {name: {} for name in chosen}
     for job in groups["comparisons"]:

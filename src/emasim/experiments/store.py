@@ -11,7 +11,9 @@ holds
   ``meta.json`` (with ``job``: the run id, the label and the tags) and, for a job that keeps
   its trace (``Job.trace``), ``result.parquet`` (read back by :meth:`Store.result`). Without
   a trace a run records only what its metrics read, and its ``scenario.toml`` says so
-  (``solver.record_signals = []``);
+  (``solver.record_signals = []``). A store given a ``measure`` (the acceptance battery's)
+  runs it on each job instead: its :class:`Measured` metrics go into ``metrics.json`` and its
+  files beside them (read back by :meth:`Store.read`);
 * ``metrics.parquet``: the tidy table, one row per finished run: ``run_id``, ``label``, every
   tag, ``status`` ('ok', 'diverged: ...' or 'failed: ...', a run that failed for any other
   reason: a rule checked only as it ran, a folder that could not be written) and every
@@ -60,6 +62,15 @@ logging.getLogger(FAILURE_LOG).addHandler(logging.NullHandler())  # a LogToFile 
 TABLE_EVERY_S = 1.0  # metrics.parquet is rewritten at most this often while runs finish
 
 
+@dataclass(frozen=True)
+class Measured:
+    """What a store's ``measure`` makes of a job: ``metrics`` (name -> a number, a flag,
+    None or text: the table's columns) and ``files`` (name -> text) for its run folder."""
+
+    metrics: dict
+    files: dict[str, str]
+
+
 def run_id_of(job: Job) -> str:
     """A job's run id (its run folder's name, its row's key)."""
     return job.tags[RUN_ID]
@@ -81,7 +92,8 @@ class Store:
     """A job list's folder (module docstring). ``record`` says what it holds (the record
     file's content, ``record_file`` its name); ``columns`` are the table's leading columns
     (default: ROW_KEYS, then the tags in the jobs' order); ``name`` is what its refusals
-    call it (``--out FOLDER`` for a study), ``refusal`` what they say of another record."""
+    call it (``--out FOLDER`` for a study), ``refusal`` what they say of another record;
+    ``measure(job)``, when given, replaces the simulation of each job (module docstring)."""
 
     folder: Path
     jobs: list[Job]
@@ -90,6 +102,7 @@ class Store:
     columns: tuple[str, ...] = ()
     name: str = ""
     refusal: str = "holds other runs; it is never replaced: choose another folder"
+    measure: Callable[[Job], Measured] | None = None
 
     def __post_init__(self):
         self.folder = Path(self.folder)
@@ -182,7 +195,7 @@ class Store:
                     progress(len(rows), total)
 
             if pending:
-                calls = [(job, self.run_folder(job), trust_fmu) for job in pending]
+                calls = [(job, self.run_folder(job), trust_fmu, self.measure) for job in pending]
                 opened = cluster() if cluster else dask_client(processes=False)
                 with contextlib.nullcontext(client) if client else opened as used:
                     try:  # one run first only to compile: with a warm cache, all at once
@@ -193,6 +206,24 @@ class Store:
                     finally:
                         self.write_table(rows)  # every run that finished
         return rows
+
+    def require_ok(self, rows: dict[str, dict]) -> None:
+        """Raise EmasimError naming the first job whose run did not end ok, if any."""
+        for job in self.jobs:
+            status = rows[run_id_of(job)]["status"]
+            if status != OK:
+                raise EmasimError(
+                    f"{run_id_of(job)}: {status} (its folder: {self.run_folder(job)}; the "
+                    f"runs that finished stay in {self.folder})"
+                )
+
+    def read(self, job: Job, name: str) -> str:
+        """The text of a file a ``measure`` wrote for ``job``, checked against the run
+        folder's manifest (emasim.manifest.verify_files)."""
+        from ..manifest import verify_files
+
+        verify_files(self.run_folder(job), [name])
+        return (self.run_folder(job) / name).read_text()
 
     def metrics_of(self, row: dict) -> dict:
         """A row's metrics: every value but the run's keys and tags."""
@@ -232,13 +263,32 @@ class Store:
         return Result.load(self.run_folder(job))
 
 
-def run_and_write(job: Job, folder: Path, trust_fmu: bool = False) -> dict:
-    """A worker's task: simulate one run, write its run folder, return its row. A run whose
-    folder is finished already (a task Dask runs again after a worker was lost) is read, not
-    run again. A run that diverges or fails for any other reason is a row that says so
-    (``status``: 'diverged: ...' or 'failed: ...', one line), in a folder marked so where it
-    can be written: it never stops the others. A failed or damaged folder of emasim's there
-    is replaced (never one holding a file emasim did not write)."""
+def keyed(root: Path, jobs: list[Job], record: dict, **options) -> Store:
+    """The store of ``jobs`` under ``root``, named ``jobs-<key>`` by what it holds: ``record``
+    with the emasim version, the digest of emasim's source and of every job's scenario. The
+    same job list finds its store again (and resumes it); a changed scenario or source makes
+    one of its own, so no result of other code is ever taken for this code's."""
+    from ..numba_cache import source_hash
+    from ..version import __version__
+
+    record = record | {
+        "runs": len(jobs),
+        "emasim_version": __version__,
+        "emasim_source_sha256": source_hash(),
+        "scenarios_sha256": digest(jobs),
+    }
+    key = hashlib.sha256(json_text(record).encode()).hexdigest()[:12]
+    return Store(Path(root) / f"jobs-{key}", jobs, record, **options)
+
+
+def run_and_write(job: Job, folder: Path, trust_fmu: bool = False, measure=None) -> dict:
+    """A worker's task: simulate one run (or ``measure`` it: :class:`Store`), write its run
+    folder, return its row. A run whose folder is finished already (a task Dask runs again
+    after a worker was lost) is read, not run again. A run that diverges or fails for any
+    other reason is a row that says so (``status``: 'diverged: ...' or 'failed: ...', one
+    line), in a folder marked so where it can be written: it never stops the others. A
+    failed or damaged folder of emasim's there is replaced (never one holding a file emasim
+    did not write)."""
     from .runs import run_scenario
 
     finished = _finished_row(folder)
@@ -246,8 +296,14 @@ def run_and_write(job: Job, folder: Path, trust_fmu: bool = False) -> dict:
         return finished
     replace = os.path.lexists(folder)  # failed or damaged: write_folder refuses what is not ours
     record = {RUN_ID: run_id_of(job), "label": job.label, "tags": _tags(job)}
-    scenario = job.scenario if job.trace else metrics_only(job.scenario)
+    start = time.perf_counter()
     try:
+        if measure is not None:
+            measured = measure(job)
+            wall_s = time.perf_counter() - start
+            _write_record(folder, job, record, OK, measured, wall_s, replace)
+            return _row(record, OK, measured.metrics)
+        scenario = job.scenario if job.trace else metrics_only(job.scenario)
         result = run_scenario(scenario, trust_fmu=trust_fmu, label=job.label)
         result.meta["job"] = record
         write = lambda tmp: result.write_files(tmp, plot=False, traces=job.trace)  # noqa: E731
@@ -259,7 +315,7 @@ def run_and_write(job: Job, folder: Path, trust_fmu: bool = False) -> dict:
         status = f"{FAILED}: {reason(err)}"
         logging.getLogger(FAILURE_LOG).error(f"{run_id_of(job)} {status}\n{traceback.format_exc()}")
     with contextlib.suppress(Exception):  # a folder that cannot be written: the row says why
-        _write_failed(folder, job, record, status, replace)
+        _write_record(folder, job, record, status, Measured({}, {}), float("nan"), replace)
     return _row(record, status, {})
 
 
@@ -297,15 +353,29 @@ def is_failed(row: dict) -> bool:
     return str(row.get("status", "")).startswith(FAILED)
 
 
-def _write_failed(folder: Path, job: Job, record: dict, status: str, replace: bool) -> None:
-    """The folder of a run that diverged or failed: its meta (with ``status``) and scenario."""
+def _write_record(
+    folder: Path,
+    job: Job,
+    record: dict,
+    status: str,
+    measured: Measured,
+    wall_s: float,
+    replace: bool,
+) -> None:
+    """The folder of a run that was measured, diverged or failed: its meta (with ``status``),
+    scenario, metrics and the measure's files."""
     from ..sim.result import write_records
     from .runs import meta_of
 
-    meta = meta_of(job.scenario, float("nan")) | {"label": job.label, "job": record}
-    meta["status"] = status
+    meta = meta_of(job.scenario, wall_s) | {"label": job.label, "job": record, "status": status}
     resolved = job.scenario.model_dump(mode="json", exclude_none=True)
-    write_folder(folder, lambda tmp: write_records(tmp, {}, meta, resolved), force=replace)
+
+    def write(tmp: Path) -> None:
+        write_records(tmp, measured.metrics, meta, resolved)
+        for name, text in measured.files.items():
+            write_new(tmp / name, text)
+
+    write_folder(folder, write, force=replace)
 
 
 def _row(record: dict, status: str, metrics: dict) -> dict:
