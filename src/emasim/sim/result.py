@@ -230,7 +230,12 @@ class Result:
         """Write the run's files into an existing folder (see :meth:`save`); without
         ``traces``, no trace file (a study's runs: the metrics and the scenario). ``figures``
         draws the plot (emasim.analysis.figure_process: a FigureProcess, or by default
-        DrawHere); the caller waits for it before publishing the folder."""
+        DrawHere); the caller waits for it before publishing the folder. The plot is handed
+        over first, so that a figure process draws it while this one writes the traces."""
+        if traces and trace_format not in TRACE_FORMATS:
+            raise ValueError(f"trace_format must be one of {TRACE_FORMATS}, got {trace_format!r}")
+        if plot:
+            _drawer(figures).save(self.plot, folder / "plot.png")
         if traces:
             path = folder / f"result.{trace_format}"
             if trace_format == "parquet":
@@ -238,12 +243,8 @@ class Result:
                     pq.write_table(self._to_arrow(), handle)
             elif trace_format == "csv":
                 write_new(path, self._csv())
-            elif trace_format == "mat":
-                write_new(path, self._mat())
             else:
-                raise ValueError(
-                    f"trace_format must be one of {TRACE_FORMATS}, got {trace_format!r}"
-                )
+                write_new(path, self._mat())
         meta = self.meta
         if self.description is not None:
             meta = {**meta, "run": self.description.to_json()}
@@ -251,8 +252,6 @@ class Result:
             rows, width = self.data.shape
             meta = {**meta, "traces": {"file": path.name, "rows": rows, "columns": width}}
         write_records(folder, self.metrics, meta, self.scenario)
-        if plot:
-            _drawer(figures).save(self.plot, folder / "plot.png")
 
     def save(
         self,
