@@ -6,6 +6,8 @@ Each test forks a real figure process; nothing here is timed.
 
 import dataclasses
 import os
+import signal
+from pathlib import Path
 
 import pytest
 
@@ -112,3 +114,16 @@ def test_save_figure_writes_the_png_of_savefig_and_leaves_the_figure_as_it_was(r
             artist.set_in_layout(False)
     plain.savefig(tmp_path / "plain.png", dpi=110)
     assert (tmp_path / "fast.png").read_bytes() == (tmp_path / "plain.png").read_bytes()
+
+
+def test_a_figure_process_handed_nothing_is_ended_at_once():
+    """A refused input hands no figure: close() ends the process (SIGTERM) rather than wait
+    for its import of matplotlib; one that drew its figures ends by itself."""
+    idle = FigureProcess()
+    idle.close()
+    assert idle._process.exitcode == -signal.SIGTERM
+    with figure_writer() as figures:
+        with pytest.raises(ValueError, match="no such column"):
+            figures.save(broken, Path("x.png"))
+            figures.wait()
+    assert figures._process.exitcode == 0

@@ -407,26 +407,29 @@ def run(
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
+    from .analysis.figure_process import figure_writer
     from .output import check_folder
-    from .scenarios.loader import load_scenario
 
     try:
-        sc = load_scenario(
-            scenario, settings=setting or [], controllers=controller or [], label=label
-        )
-        # the compiled core (numba) loads only for a valid scenario
-        from .analysis.figure_process import figure_writer
-        from .experiments.batch import run as run_any
-        from .sim.cosim import check_runnable
-        from .sim.result import check_trace_format
+        # the figure process imports matplotlib from here on, while this one loads the scenario
+        # and the compiled core, and simulates; a refusal ends it at once, having drawn nothing
+        with figure_writer(plot) as figures:
+            from .scenarios.loader import load_scenario
 
-        check_runnable(sc, trust_fmu)  # every rule, before the compile notice
-        check_trace_format(trace_format)
-        if out is not None:
-            check_folder(out, force)  # refuse before spending the simulation time
-        _notice_compile()
-        progress = _LazyProgress(f"simulating {sc.name}")
-        with figure_writer(plot) as figures:  # imports matplotlib while this one simulates
+            sc = load_scenario(
+                scenario, settings=setting or [], controllers=controller or [], label=label
+            )
+            # the compiled core (numba) loads only for a valid scenario
+            from .experiments.batch import run as run_any
+            from .sim.cosim import check_runnable
+            from .sim.result import check_trace_format
+
+            check_runnable(sc, trust_fmu)  # every rule, before the compile notice
+            check_trace_format(trace_format)
+            if out is not None:
+                check_folder(out, force)  # refuse before spending the simulation time
+            _notice_compile()
+            progress = _LazyProgress(f"simulating {sc.name}")
             try:
                 result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
                 by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}

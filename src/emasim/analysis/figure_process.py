@@ -1,20 +1,22 @@
 """Figures drawn by a second process, which imports matplotlib while the first one simulates.
 
 Importing matplotlib and drawing a run's figure take about half a second of a single
-``emasim run`` of two seconds, and neither depends on the simulation until the very end. So
-the command line forks a *figure process* as soon as the scenario is valid: it imports
-``emasim.analysis.plots`` (matplotlib) on the second core while the first loads the compiled
-core and simulates, at the lowest CPU priority (``os.nice(FIGURE_NICENESS)``): where every
-core simulates (a comparison's sets on two threads), it takes only the cycles they leave, so it
-never slows the simulation it waits for. A result folder's writer then hands each figure to it
-(:meth:`save`: the function that draws it, pickled, and the path of its PNG) and goes on
-writing traces and metrics, or simulating; before the folder is published, :meth:`wait`
-collects every figure, and re-raises in the first process whatever the drawing raised, so a
-failed figure fails the write as before.
+``emasim run`` of one second, and neither depends on the simulation until the very end. So
+``emasim run`` forks a *figure process* first, before it reads the scenario: it imports
+``emasim.analysis.plots`` (matplotlib) on the second core while the first validates the
+scenario, loads the compiled core and simulates, at the lowest CPU priority
+(``os.nice(FIGURE_NICENESS)``): where every core simulates (a comparison's sets on two
+threads), it takes only the cycles they leave, so it never slows the simulation it waits for.
+A result folder's writer then hands each figure to it (:meth:`save`: the function that draws
+it, pickled, and the path of its PNG) and goes on writing traces and metrics, or
+simulating, while it is drawn; before the folder is published, :meth:`wait` collects every
+figure, and re-raises in the first process whatever the drawing raised, so a failed figure
+fails the write as before.
 
 The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
 built, so the file is listed in that build's journal like every other. It ends when told
-(:meth:`close`), and at once when the first process ends: the kernel ends it then.
+(:meth:`close`; at once if it was handed nothing: a refused input costs no wait for its
+import), and at once when the first process ends: the kernel ends it then.
 Where ``fork`` is not available (or not safe: macOS, Windows), :func:`figure_writer` gives
 :class:`DrawHere`, which draws in the calling process; the files are the same either way.
 """
@@ -80,6 +82,7 @@ class FigureProcess:
         self._sender = threading.Thread(target=self._send_all, daemon=True)
         self._sender.start()
         self._pending = 0
+        self._handed = False  # whether any figure was handed over
 
     def _send_all(self) -> None:
         """The sender thread: write each job to the pipe; stop at None or a closed pipe."""
@@ -96,6 +99,7 @@ class FigureProcess:
         process, and return at once."""
         self._outbox.put(pickle.dumps((draw, str(path)), protocol=pickle.HIGHEST_PROTOCOL))
         self._pending += 1
+        self._handed = True
 
     def wait(self) -> None:
         """Block until every figure handed over is written; re-raise what drawing one raised."""
@@ -116,10 +120,12 @@ class FigureProcess:
     def close(self) -> None:
         """End the figure process: close the jobs pipe (its end-of-file tells it to stop) and
         wait for it. If it is still drawing after CLOSE_S (the writer failed or was
-        interrupted with figures pending), end it: its death also ends a send under way."""
+        interrupted with figures pending), end it: its death also ends a send under way. One
+        that was handed no figure (the command refused its input) is ended at once, without
+        waiting for its import of matplotlib."""
         self._outbox.put(None)
         self._sender.join(timeout=CLOSE_S)
-        if self._sender.is_alive():
+        if self._sender.is_alive() or not self._handed:
             self._process.terminate()
             self._sender.join()
         self._jobs.close()
