@@ -1,10 +1,13 @@
 """Paired speed of this tree against an earlier revision, in interleaved processes.
 
-    python benchmarks/bench_paired.py [--before REV] [--pairs 5] [--quick] [--commands]
-                                      [--reproduce]
+    python benchmarks/bench_paired.py [--before REV] [--after REV] [--pairs 5] [--quick]
+                                      [--commands [--only KEY]...] [--reproduce]
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
-``REV`` (default HEAD) is extracted with ``git archive`` into a temporary folder. Then
+``--before`` (default HEAD) is extracted with ``git archive`` into a temporary folder, and
+so is ``--after``'s; without ``--after``, this working tree's package is copied there when
+the measurement begins, so that edits made meanwhile (this tree is shared) neither change what
+is timed nor start a new numba cache, whose compile would land in a timed process. Then
 ``--pairs`` times, one process runs the revision and one runs this tree, the revision first
 in even pairs and second in odd ones (so neither side always runs second). Each process
 times every shipped scenario's first controller set once, after a warm-up. Two calls are
@@ -19,13 +22,16 @@ one class in one process collide. ``--quick`` (CI) runs 0.05 s of each scenario,
 ``--commands`` times whole command lines instead: each of COMMANDS (the start-up figures'
 commands of ``commands.STARTUP`` and the four-controller ``run speed-step``) as one fresh
 ``python -m emasim`` process of each tree, interleaved the same way, after one warm-up process
-of each (numba's cache and the bytecode filled). ``--reproduce`` times ``emasim reproduce``
-(every paper experiment and the report, about half a minute) the same way.
+of each (numba's cache and the bytecode filled); ``--only KEY`` (repeatable) times only those
+of COMMANDS, e.g. ``--only run_speed_step_pi --only run_speed_step_pi_no_plot``.
+``--reproduce`` times ``emasim reproduce`` (every paper experiment and the report, about half
+a minute) the same way.
 """
 
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -53,6 +59,16 @@ def extract(rev: str, folder: Path) -> Path:
     ).stdout
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
         tar.extractall(folder, filter="data")
+    return folder / "src"
+
+
+def snapshot(folder: Path) -> Path:
+    """A copy of this working tree's package (without bytecode) under ``folder``; its src
+    folder."""
+    package = ROOT / "src" / "emasim"
+    shutil.copytree(
+        package, folder / "src" / "emasim", ignore=shutil.ignore_patterns("__pycache__")
+    )
     return folder / "src"
 
 
@@ -118,10 +134,19 @@ def print_medians(rows: list[tuple[str, list, list]]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", default="HEAD", help="git revision to compare against")
+    parser.add_argument(
+        "--after", default=None, help="git revision to time (default: a copy of this tree)"
+    )
     parser.add_argument("--pairs", type=int, default=5, help="interleaved runs of each tree")
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_S} s runs, one pair")
     parser.add_argument(
         "--commands", action="store_true", help="time whole command lines (module docstring)"
+    )
+    parser.add_argument(
+        "--only",
+        action="append",
+        choices=list(COMMANDS),
+        help="with --commands: time only this command (repeatable)",
     )
     parser.add_argument("--reproduce", action="store_true", help="time `emasim reproduce`")
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
@@ -131,9 +156,16 @@ def main() -> None:
         print(json.dumps(measure(args.duration)))
         return
     pairs, duration = (1, QUICK_S) if args.quick else (args.pairs, None)
+    if args.only and not args.commands:
+        parser.error("--only picks commands: give --commands")
     with tempfile.TemporaryDirectory() as folder:
-        trees = {"before": extract(args.before, Path(folder)), "after": ROOT / "src"}
-        commands = REPRODUCE if args.reproduce else COMMANDS if args.commands else None
+        before, after = Path(folder) / "before", Path(folder) / "after"
+        trees = {
+            "before": extract(args.before, before),
+            "after": extract(args.after, after) if args.after else snapshot(after),
+        }
+        commands = {key: COMMANDS[key] for key in args.only or COMMANDS}
+        commands = REPRODUCE if args.reproduce else commands if args.commands else None
         if commands:
             for src in trees.values():
                 command_seconds(src, commands)  # numba's cache and the bytecode filled
@@ -142,7 +174,10 @@ def main() -> None:
             for src in trees.values():
                 run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
             times = interleaved(trees, pairs, lambda src: run_tree(src, duration))
-    print(f"after: this tree; before: {args.before}; {pairs} interleaved pairs of processes")
+    print(
+        f"after: {args.after or 'this tree'}; before: {args.before}; {pairs} interleaved pairs "
+        "of processes"
+    )
     if commands:
         print(
             f"{'command (wall s of a fresh process)':36s}  {'before':>10s}  {'after':>9s}  "
