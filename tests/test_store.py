@@ -3,6 +3,11 @@
 import json
 import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
+from subprocess import DEVNULL
 
 import numpy as np
 import pandas as pd
@@ -68,21 +73,21 @@ def test_a_killed_job_list_resumes_with_only_the_runs_it_lacks(tmp_path, monkeyp
     jobs = jobs_of([1, 2, 3, 4])
     full = Store(tmp_path / "full", jobs, {"what": "four seeds"})
     whole = full.frame(full.run())
-    # the folder as a kill leaves it: two runs finished, the table behind, a temporary
+    # the folder as a kill leaves it: two runs finished, the table behind, and the temporary
+    # of a run killed as it was published, its records written: not a finished run
     shutil.copytree(tmp_path / "full", tmp_path / "cut", symlinks=True)
-    for name in ("pi-2", "pi-4"):
-        shutil.rmtree(tmp_path / "cut" / RUNS_FOLDER / name)
+    runs_folder = tmp_path / "cut" / RUNS_FOLDER
+    dead = runs_folder / ".pi-2.tmp-999999-0123abcd"
+    (runs_folder / "pi-2").rename(dead)
+    shutil.rmtree(runs_folder / "pi-4")
     (tmp_path / "cut" / METRICS_FILE).unlink()
-    dead = tmp_path / "cut" / RUNS_FOLDER / ".pi-2.tmp-999999-0123abcd"
-    dead.mkdir()
-    (dead / ".emasim-result").write_text('{"kind": "run", "files": []}')
     ran = counting(monkeypatch)
     told = []
     cut = Store(tmp_path / "cut", jobs, {"what": "four seeds"})
     resumed = cut.frame(cut.run(progress=lambda done, total: told.append((done, total))))
     assert sorted(ran) == [2, 4] and told[0] == (2, 4) and told[-1] == (4, 4)
     assert resumed.equals(whole) and read_table(tmp_path / "cut").equals(whole)
-    assert not dead.exists()
+    assert not dead.exists() and (runs_folder / "pi-2" / "metrics.json").is_file()
 
 
 def test_a_folder_holding_other_runs_is_refused_and_left_as_it_was(tmp_path):
@@ -127,3 +132,29 @@ def test_a_killed_reproduction_resumes_from_its_store(tmp_path, monkeypatch):
     tables = [json.loads((f / "tables.json").read_text()) for f in (first, again)]
     assert tables[0] == tables[1]
     assert pd.read_parquet(again / RUNS_TABLE).equals(table)
+
+
+def test_a_reproduction_killed_by_sigkill_resumes_without_running_its_finished_runs_again(
+    tmp_path,
+):
+    """A real kill, in a process of its own, as soon as the store holds a finished run: the
+    same command then finishes, each run that was finished before is kept as it was (its
+    meta.json unchanged), and the report's table has every run, ok."""
+    command = [sys.executable, "-m", "emasim", "reproduce", "--only", "bench-step"]
+    command += ["--no-ablation", "--out", "report"]
+    runs = tmp_path / "runs" / "reproduce"
+    finished = lambda: sorted(  # noqa: E731
+        meta for meta in runs.glob("jobs-*/runs/*/meta.json") if meta.parent.name[0] != "."
+    )
+    process = subprocess.Popen(command, cwd=tmp_path, stdout=DEVNULL, stderr=DEVNULL)
+    while not finished() and process.poll() is None:  # the run ends by itself: a bounded wait
+        time.sleep(0.005)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    before = {path: path.read_bytes() for path in finished()}
+    assert before and not (tmp_path / "report").exists()
+    again = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert {path: path.read_bytes() for path in before} == before
+    table = pd.read_parquet(tmp_path / "report" / RUNS_TABLE)
+    assert len(table) > len(before) and (table["status"] == "ok").all()

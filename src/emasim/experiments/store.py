@@ -391,16 +391,18 @@ def finished_rows(folder: Path) -> dict[str, dict]:
 
 
 def _finished_row(run: Path) -> dict | None:
-    """The row of a finished run folder, from its record; None for anything else (no folder,
-    a killed run's temporary, or not ours)."""
+    """The row of a finished run folder, from its record; None for anything else: no folder,
+    one not ours, or a killed run's temporary (``.<run_id>.tmp-...``, whose records may be
+    written already: only a folder named by its run id is published)."""
     if not is_emasim_folder(run):
         return None
     try:
         meta = json.loads((run / "meta.json").read_text())
         metrics = json.loads((run / "metrics.json").read_text())
-        return _row(meta["job"], meta.get("status", OK), metrics)
+        row = _row(meta["job"], meta.get("status", OK), metrics)
     except (OSError, ValueError, KeyError, TypeError):
         return None
+    return row if row[RUN_ID] == run.name else None
 
 
 def _is_table(path: Path) -> bool:
