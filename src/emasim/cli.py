@@ -407,18 +407,18 @@ def run(
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
-    from .analysis.figure_process import figure_writer
     from .output import check_folder
+    from .scenarios.loader import load_scenario
 
     try:
-        # the figure process imports matplotlib from here on, while this one loads the scenario
-        # and the compiled core, and simulates; a refusal ends it at once, having drawn nothing
-        with figure_writer(plot) as figures:
-            from .scenarios.loader import load_scenario
+        sc = load_scenario(
+            scenario, settings=setting or [], controllers=controller or [], label=label
+        )
+        from .analysis.figure_process import figure_writer
 
-            sc = load_scenario(
-                scenario, settings=setting or [], controllers=controller or [], label=label
-            )
+        # the figure process imports matplotlib from here on, while this one loads the compiled
+        # core and simulates; a refusal ends it at once, having drawn nothing
+        with figure_writer(plot) as figures:
             # the compiled core (numba) loads only for a valid scenario
             from .experiments.batch import run as run_any
             from .sim.cosim import check_runnable

@@ -2,9 +2,9 @@
 
 Importing matplotlib and drawing a run's figure take about half a second of a single
 ``emasim run`` of one second, and neither depends on the simulation until the very end. So
-``emasim run`` forks a *figure process* first, before it reads the scenario: it imports
-``emasim.analysis.plots`` (matplotlib) on the second core while the first validates the
-scenario, loads the compiled core and simulates, at the lowest CPU priority
+``emasim run`` forks a *figure process* as soon as the scenario is valid, before it imports
+the compiled core: it imports ``emasim.analysis.plots`` (matplotlib) on the second core while
+the first loads the compiled core and simulates, at the lowest CPU priority
 (``os.nice(FIGURE_NICENESS)``): where every core simulates (a comparison's sets on two
 threads), it takes only the cycles they leave, so it never slows the simulation it waits for.
 A result folder's writer then hands each figure to it (:meth:`save`: the function that draws
@@ -15,7 +15,7 @@ fails the write as before.
 
 The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
 built, so the file is listed in that build's journal like every other. It ends when told
-(:meth:`close`; at once if it was handed nothing: a refused input costs no wait for its
+(:meth:`close`; at once if it was handed nothing: a refused run costs no wait for its
 import), and at once when the first process ends: the kernel ends it then.
 Where ``fork`` is not available (or not safe: macOS, Windows), :func:`figure_writer` gives
 :class:`DrawHere`, which draws in the calling process; the files are the same either way.
@@ -121,7 +121,7 @@ class FigureProcess:
         """End the figure process: close the jobs pipe (its end-of-file tells it to stop) and
         wait for it. If it is still drawing after CLOSE_S (the writer failed or was
         interrupted with figures pending), end it: its death also ends a send under way. One
-        that was handed no figure (the command refused its input) is ended at once, without
+        that was handed no figure (the command refused its options) is ended at once, without
         waiting for its import of matplotlib."""
         self._outbox.put(None)
         self._sender.join(timeout=CLOSE_S)
