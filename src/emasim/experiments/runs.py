@@ -40,7 +40,7 @@ def meta_of(scenario, wall_s: float) -> dict:
     numpy, scipy, numba), the platform, the command line, the seed and the timings."""
     return {
         "emasim_version": __version__,
-        "emasim_source_sha256": _source_digest(),
+        "emasim_source_sha256": source_digest(),
         **source_commit(),
         "seed": scenario.seed,
         "scenario": scenario.name,
@@ -67,16 +67,18 @@ def _platform() -> dict:
 
 @functools.cache
 @functools.cache
-def _source_digest() -> str:
-    """The digest of the package's source (emasim.numba_cache.source_hash): it names the code
-    that ran, for any install, with or without git."""
+def source_digest() -> str:
+    """The digest of the package's source (emasim.numba_cache.source_hash) when this process
+    first asks: it names the code that runs, for any install, with or without git."""
     return source_hash()
 
 
+@functools.cache
 def source_commit() -> dict:
     """``git_commit`` (and ``git_dirty``: uncommitted changes to the package) of the checkout
-    emasim's source is tracked in; {} for an installed copy (not tracked by any git tree, even
-    one it lies inside), or without git."""
+    emasim's source is tracked in, when this process first asks (three git commands: 10 ms,
+    once, not at every run); {} for an installed copy (not tracked by any git tree, even one
+    it lies inside), or without git."""
     package = Path(__file__).resolve().parents[1]
 
     def git(*args: str) -> str:

@@ -268,13 +268,13 @@ def keyed(root: Path, jobs: list[Job], record: dict, **options) -> Store:
     with the emasim version, the digest of emasim's source and of every job's scenario. The
     same job list finds its store again (and resumes it); a changed scenario or source makes
     one of its own, so no result of other code is ever taken for this code's."""
-    from ..numba_cache import source_hash
     from ..version import __version__
+    from .runs import source_digest
 
     record = record | {
         "runs": len(jobs),
         "emasim_version": __version__,
-        "emasim_source_sha256": source_hash(),
+        "emasim_source_sha256": source_digest(),
         "scenarios_sha256": digest(jobs),
     }
     key = hashlib.sha256(json_text(record).encode()).hexdigest()[:12]
