@@ -69,6 +69,20 @@ def test_a_kept_trace_reads_back_as_the_run_and_the_others_keep_none(tmp_path):
     assert not (tmp_path / "s" / RUNS_FOLDER / "pi-2" / "result.parquet").exists()
 
 
+def test_a_run_folder_that_lost_a_file_is_run_again(tmp_path, monkeypatch):
+    jobs = jobs_of([1, 2])
+    store = Store(tmp_path / "s", jobs, {"what": "two seeds"})
+    store.run()
+    (tmp_path / "s" / RUNS_FOLDER / "pi-1" / "result.parquet").unlink()  # the kept trace
+    edited = tmp_path / "s" / RUNS_FOLDER / "pi-2" / "metrics.json"
+    edited.write_text("{}")  # a file changed since emasim wrote it: never replaced
+    ran = counting(monkeypatch)
+    rows = store.run()
+    assert sorted(ran) == [1, 2] and store.result(jobs[0]).data.shape[0] > 0
+    assert rows["pi-1"]["status"] == "ok" and edited.read_text() == "{}"
+    assert rows["pi-2"]["status"].startswith("failed: ") and "emasim" in rows["pi-2"]["status"]
+
+
 def test_a_killed_job_list_resumes_with_only_the_runs_it_lacks(tmp_path, monkeypatch):
     jobs = jobs_of([1, 2, 3, 4])
     full = Store(tmp_path / "full", jobs, {"what": "four seeds"})

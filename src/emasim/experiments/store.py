@@ -43,8 +43,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import EmasimError, OutputError, SimulationDiverged
+from ..errors import DamagedResult, EmasimError, OutputError, SimulationDiverged
 from ..jsonio import json_text
+from ..manifest import manifest_stamps, verify_files
 from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
 from .batch import Job
 
@@ -220,8 +221,6 @@ class Store:
     def read(self, job: Job, name: str) -> str:
         """The text of a file a ``measure`` wrote for ``job``, checked against the run
         folder's manifest (emasim.manifest.verify_files)."""
-        from ..manifest import verify_files
-
         verify_files(self.run_folder(job), [name])
         return (self.run_folder(job) / name).read_text()
 
@@ -392,15 +391,17 @@ def finished_rows(folder: Path) -> dict[str, dict]:
 
 def _finished_row(run: Path) -> dict | None:
     """The row of a finished run folder, from its record; None for anything else: no folder,
-    one not ours, or a killed run's temporary (``.<run_id>.tmp-...``, whose records may be
+    one not ours, a damaged one (a file of its manifest lost or changed: its trace, its
+    measurement), or a killed run's temporary (``.<run_id>.tmp-...``, whose records may be
     written already: only a folder named by its run id is published)."""
     if not is_emasim_folder(run):
         return None
     try:
+        verify_files(run, list(manifest_stamps(run)))
         meta = json.loads((run / "meta.json").read_text())
         metrics = json.loads((run / "metrics.json").read_text())
         row = _row(meta["job"], meta.get("status", OK), metrics)
-    except (OSError, ValueError, KeyError, TypeError):
+    except (OSError, ValueError, KeyError, TypeError, DamagedResult):
         return None
     return row if row[RUN_ID] == run.name else None
 
