@@ -172,3 +172,24 @@ def test_a_reproduction_killed_by_sigkill_resumes_without_running_its_finished_r
     assert {path: path.read_bytes() for path in before} == before
     table = pd.read_parquet(tmp_path / "report" / RUNS_TABLE)
     assert len(table) > len(before) and (table["status"] == "ok").all()
+
+
+def test_a_store_and_its_table_are_pruned_whole_and_a_changed_table_keeps_it(tmp_path):
+    """metrics.parquet, written after the store's folder was published, is in its manifest:
+    `emasim runs prune` removes a finished store whole, and keeps one whose table changed."""
+    from typer.testing import CliRunner
+
+    from emasim.cli import app
+
+    for name in ("a", "b"):
+        Store(tmp_path / "runs" / name, jobs_of([1]), {"what": name}).run()
+    with open(tmp_path / "runs" / "b" / METRICS_FILE, "ab") as table:
+        table.write(b"an edit")
+    done = CliRunner().invoke(
+        app, ["runs", "prune", str(tmp_path / "runs"), "--keep", "0", "--yes"]
+    )
+    assert done.exit_code == 0, done.output
+    assert not (tmp_path / "runs" / "a").exists() and (tmp_path / "runs" / "b").is_dir()
+    assert f"kept, it holds files emasim did not write ({METRICS_FILE})" in " ".join(
+        done.output.split()
+    )

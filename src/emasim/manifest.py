@@ -41,6 +41,17 @@ def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> Non
     (folder / MARKER).write_text(json_text(record | {"stamps": stamps, "sha256": sums}))
 
 
+def list_file(folder: Path, name: str) -> None:
+    """Add ``name``, a file emasim wrote into the published result ``folder``, to its manifest
+    with its stamp and SHA-256 as they are now; every other entry stays as it was."""
+    folder = Path(folder)
+    record = json.loads((folder / MARKER).read_text())
+    record["files"] = sorted({*record["files"], name})
+    record.setdefault("stamps", {})[name] = stamp(os.lstat(folder / name))
+    record.setdefault("sha256", {})[name] = sha256_of(folder / name)
+    (folder / MARKER).write_text(json_text(record))
+
+
 def manifest_stamps(folder: Path) -> dict[str, list | None]:
     """The files ``folder``'s manifest lists, each with its stamp (None where it has none);
     {} where there is no manifest that can be read."""

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .errors import OutputError
-from .manifest import MARKER, manifest_stamps, stamp, write_marker
+from .manifest import MARKER, list_file, manifest_stamps, stamp, write_marker
 from .naming import numbered
 
 JOURNAL = ".emasim-journal"
@@ -266,19 +266,26 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
 
 def write_file(path: Path, content: bytes | str | Path, *, force: bool = False,
                is_ours: Callable[[Path], bool], what: str,
-               replace_hint: str = CLI_HINTS[0]) -> Path:  # fmt: skip
+               replace_hint: str = CLI_HINTS[0], listed: bool = False) -> Path:  # fmt: skip
     """Write ``content`` (bytes, text, or a file's path to copy) to the file ``path``, built in
-    a build folder, then hard-linked into place or, with ``force``, checked again and replaced."""
+    a build folder, then hard-linked into place or, with ``force``, checked again and replaced;
+    ``listed``: into an emasim result, whose manifest then lists it (manifest.list_file)."""
     path = Path(path)
     check_file(path, force, is_ours, what, replace_hint)
     with _build(path, "file", what) as tmp:
         write_new(tmp / path.name, content.read_bytes() if isinstance(content, Path) else content)
         with locked(path.parent):
+            placed = True
             if force and os.path.lexists(path):
                 check_file(path, force, is_ours, what, replace_hint)  # again, under the lock
                 os.replace(tmp / path.name, path)
-                return path
-            with contextlib.suppress(FileExistsError):
-                os.link(tmp / path.name, path)  # replaces nothing
-                return path
-    raise OutputError(f"{what} {path}: {_TAKEN}")
+            else:
+                try:
+                    os.link(tmp / path.name, path)  # replaces nothing
+                except FileExistsError:
+                    placed = False
+            if placed and listed:
+                list_file(path.parent, path.name)
+    if not placed:
+        raise OutputError(f"{what} {path}: {_TAKEN}")
+    return path

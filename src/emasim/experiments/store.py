@@ -253,6 +253,7 @@ class Store:
             force=True,
             is_ours=_is_table,
             what="--out",
+            listed=True,
         )
 
     def result(self, job: Job):
