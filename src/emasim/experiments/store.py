@@ -17,7 +17,9 @@ holds
 * ``metrics.parquet``: the tidy table, one row per finished run: ``run_id``, ``label``, every
   tag, ``status`` ('ok', 'diverged: ...' or 'failed: ...', a run that failed for any other
   reason: a rule checked only as it ran, a folder that could not be written) and every
-  metric; rewritten atomically as runs finish (at most every TABLE_EVERY_S, and at the end);
+  metric; rewritten atomically as runs finish (at most every TABLE_EVERY_S, less often where
+  a rewrite, whose cost grows with the rows, would take more than TABLE_SHARE of the client's
+  time; and at the end);
 * ``workers.log``: what the worker processes of a LocalCluster print (warnings, and each
   failed run's traceback), never the user's terminal.
 
@@ -61,6 +63,7 @@ FAILED = "failed"
 FAILURE_LOG = "emasim_worker"  # not under "emasim": the command line's console never shows it
 logging.getLogger(FAILURE_LOG).addHandler(logging.NullHandler())  # a LogToFile worker: its file
 TABLE_EVERY_S = 1.0  # metrics.parquet is rewritten at most this often while runs finish
+TABLE_SHARE = 0.05  # and at most this share of the client's time goes to rewriting it
 
 
 @dataclass(frozen=True)
@@ -184,14 +187,13 @@ class Store:
             total = len(self.jobs)
             if progress is not None:
                 progress(len(rows), total)
-            self.write_table(rows)
-            written = [time.monotonic()]
+            self.write_table(rows)  # (its first write: its cost is pyarrow's import too)
+            due = [time.monotonic() + TABLE_EVERY_S]  # when the table may be rewritten next
 
             def on_done(_, row):
                 rows[row[RUN_ID]] = row
-                if time.monotonic() - written[0] >= TABLE_EVERY_S:
-                    self.write_table(rows)
-                    written[0] = time.monotonic()
+                if time.monotonic() >= due[0]:
+                    due[0] = self._timed_write(rows)
                 if progress is not None:
                     progress(len(rows), total)
 
@@ -235,6 +237,16 @@ class Store:
         ordered = sorted(rows.values(), key=lambda row: self._order[row[RUN_ID]])
         metrics = dict.fromkeys(k for row in ordered for k in row if k not in self.columns)
         return pd.DataFrame(ordered, columns=[*self.columns, *metrics])
+
+    def _timed_write(self, rows: dict[str, dict]) -> float:
+        """Write the table; return when it may be rewritten next (TABLE_EVERY_S after, or
+        later where the rewrite itself took more than TABLE_SHARE of that: a table of many
+        thousand rows is rewritten less often, so its cost stays a small share of the client's
+        time, which the workers need on a machine with no core to spare)."""
+        start = time.monotonic()
+        self.write_table(rows)
+        end = time.monotonic()
+        return end + max(TABLE_EVERY_S, (end - start) / TABLE_SHARE)
 
     def write_table(self, rows: dict[str, dict]) -> None:
         """Write metrics.parquet atomically (pyarrow; the schema metadata tags it as ours)."""
