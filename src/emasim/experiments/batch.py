@@ -172,7 +172,8 @@ def map_runs(
     before the others, so that a cold numba cache is compiled once, not by every worker.
     ``grouped``: send several jobs in one task (:func:`task_groups`), for many short jobs: each
     task costs the scheduler and the client a few milliseconds of this process's CPU, which
-    the workers lose when the cluster has no core to spare. The first failure cancels the
+    the workers lose when the cluster has no core to spare. Each task is released as it
+    comes back: no finished task's value stays on a worker. The first failure cancels the
     tasks still waiting and is raised here."""
     from dask.distributed import as_completed
 
@@ -185,7 +186,7 @@ def map_runs(
         return future
 
     def collect(future):
-        for i, value in zip(index[future.key], future.result(), strict=True):
+        for i, value in zip(index.pop(future.key), future.result(), strict=True):
             values[i] = value
             if on_done is not None:
                 on_done(i, value)
@@ -195,12 +196,14 @@ def map_runs(
         collect(submit([0]))
     rest = range(start, len(jobs))
     groups = task_groups(rest, _slots(client)) if grouped else [[i] for i in rest]
-    futures = [submit(group) for group in groups]
+    waiting = {submit(group) for group in groups}
     try:
-        for future in as_completed(futures):
+        for future in as_completed(waiting):
+            waiting.discard(future)
             collect(future)
+            del future  # released: its value leaves the worker's memory
     except BaseException:
-        client.cancel(futures)
+        client.cancel(list(waiting))
         raise
     return values
 
