@@ -19,7 +19,7 @@ after each, with the bytes of the kept trace (``Result.data``) and peak / trace;
 a process of its own (MEMORY_S), once with every column and once recording only the columns
 the metrics and plots read (``solver.record_signals``). Batch: the study facility's
 throughput on one and on two worker processes (``bench_study.study_scaling``); beside it,
-CEILING runs of the same Monte Carlo, cut short, their compiled loop alone (EngineRun.advance,
+CEILING PID runs of the same Monte Carlo, cut short, their compiled loop alone (EngineRun.advance,
 the GIL released) on one and on two Python threads: the scaling this machine's two cores
 allow; and the same runs in one ``prange`` batch kernel (``batch_kernel.py``) on one and on two
 of numba's threads, interleaved with them.
@@ -39,8 +39,8 @@ notes the part's date under ``updated``, which the table's first line names. A f
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
 and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
-bench_study.QUICK_RUNS runs of its QUICK_S; no ``list``, single or cold runs, reproduce, Monte
-Carlo or FMU. Its results are marked ``"quick": true`` and docs/speed.md's table says so.
+bench_study.QUICK_PLANTS plants of its QUICK_S; no ``list``, single or cold runs, reproduce,
+Monte Carlo or FMU. Its results are marked ``"quick": true`` and docs/speed.md's table says so.
 """
 
 import argparse
@@ -71,7 +71,7 @@ from emasim.sim.engine import EngineRun, simulate
 from emasim.sim.reference import simulate_reference
 
 QUICK_S = 0.05
-CEILING = (16, 2.0)  # runs of the batch's Monte Carlo, simulated s each, for the loop alone
+CEILING = (16, 2.0)  # PID runs of the batch's Monte Carlo, simulated s each, for the loop alone
 QUICK_REFERENCE_S = 0.005
 MEMORY_S = (100.0, 1000.0)
 QUICK_MEMORY_S = 1.0
@@ -261,12 +261,14 @@ def core_seconds(setups: list, threads: int) -> float:
     return time.perf_counter() - start
 
 
-def batch_scaling(runs: int, duration_s: float | None, repeats: int, ceiling: tuple) -> dict:
+def batch_scaling(plants: int, duration_s: float | None, repeats: int, ceiling: tuple) -> dict:
     """The study facility on 1 and 2 worker processes (bench_study.study_scaling); and the
-    ``ceiling`` (runs, duration_s) of the same Monte Carlo's compiled loop alone on 1 and 2
-    threads, interleaved: the machine's ceiling."""
-    figures = bench_study.study_scaling(runs, duration_s, repeats)
-    setups = [job.scenario.setup() for job in plan_study(bench_study.scaling_spec(*ceiling)).jobs]
+    ``ceiling`` (runs, duration_s) of the same Monte Carlo's compiled loop alone, PID (one
+    structure, as the batch kernel needs), on 1 and 2 threads, interleaved: the machine's
+    ceiling."""
+    figures = bench_study.study_scaling(plants, duration_s, repeats)
+    ceiling_spec = bench_study.scaling_spec(*ceiling, labels=bench_study.LABELS[:1])
+    setups = [job.scenario.setup() for job in plan_study(ceiling_spec).jobs]
     core_seconds(setups[:1], 1)  # load compiled code
     warm = batch_kernel.stack(setups[:2])
     batch_kernel.run_stacked(warm, 2)  # compile the kernel
@@ -310,7 +312,7 @@ def quick_results() -> dict:
     results["cli_real_time_factor"] = cli_real_time_factors(1, QUICK_S, ("speed-step",))
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
-    quick = (bench_study.QUICK_RUNS, bench_study.QUICK_S)
+    quick = (bench_study.QUICK_PLANTS, bench_study.QUICK_S)
     results["batch"] = batch_scaling(*quick, 1, ceiling=quick)
     return results
 
@@ -346,7 +348,7 @@ SECTIONS = {  # the full run's figures that --update re-measures alone
     "reproduce_s": reproduce_seconds,
     "peak_memory": lambda: memory_figures(MEMORY_S),
     "batch": lambda: batch_scaling(
-        bench_study.SCALING_RUNS, None, bench_study.REPEATS, ceiling=CEILING
+        bench_study.SCALING_PLANTS, None, bench_study.REPEATS, ceiling=CEILING
     ),
     "monte_carlo": lambda: bench_study.monte_carlo_seconds(bench_study.MC_RUNS),
 }

@@ -181,10 +181,17 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
     rows += [(what, how, seconds(results.get(key))) for key, what, how in FRESH_RUNS]
     batch = results.get("batch")
     if batch is not None:
+        labels = batch.get("labels", ["PID"])
+        sets = (
+            f"{' and '.join(labels)} on each of {batch['plants']} plants"
+            if "plants" in batch
+            else ", ".join(labels)
+        )
         rows.append(
             (
-                f"{batch['runs']} Monte Carlo runs of `{batch['scenario']}` (PID; the bench's "
-                f"plant uncertainty drawn, {given(batch['duration_s'])} each) through "
+                f"{batch['runs']} metrics-only Monte Carlo runs of `{batch['scenario']}` "
+                f"({sets}; the bench's plant uncertainty drawn, "
+                f"{given(batch['duration_s'])} each) through "
                 "`emasim study`'s facility, 1 worker process against 2",
                 f"median of {batch.get('repeats', 3)} each, interleaved, one cluster at a time, "
                 "started beforehand",
@@ -216,7 +223,7 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
         )
         rows.append(
             (
-                f"{batch['ceiling_runs']} runs of the same Monte Carlo, "
+                f"{batch['ceiling_runs']} PID runs of the same Monte Carlo, "
                 f"{given(batch['ceiling_s'])} each: their compiled loop alone (no set-up, no "
                 "metrics, GIL released), 1 thread against 2: the machine's ceiling",
                 "median of 3 each, interleaved, in one process",
