@@ -121,6 +121,9 @@ def experiment_of(result):
     return description.experiment
 
 
+TERM = TypeAdapter(Term)  # a reference term's validator, built once (a few ms each time)
+
+
 def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     """Rudder angle, its reference (deg), rudder rate and reference rate (deg/s).
 
@@ -131,7 +134,7 @@ def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     """
     t = result.t
     experiment = experiment_of(result)
-    command = encode([TypeAdapter(Term).validate_python(term) for term in experiment.reference])
+    command = encode([TERM.validate_python(term) for term in experiment.reference])
     reference = signal_values(command, t)
     reference_rate = np.gradient(reference, t)
     if measured:
