@@ -17,7 +17,15 @@ from emasim.errors import OutputError
 from emasim.experiments import runs
 from emasim.experiments.batch import Job
 from emasim.experiments.reproduction import RUNS_TABLE, job_store, reproduce
-from emasim.experiments.store import METRICS_FILE, RUN_ID, RUNS_FOLDER, Store, digest, read_table
+from emasim.experiments.store import (
+    LOG_FILE,
+    METRICS_FILE,
+    RUN_ID,
+    RUNS_FOLDER,
+    Store,
+    digest,
+    read_table,
+)
 from emasim.scenarios.loader import load_scenario
 
 SHORT = ["duration_s=0.04"]
@@ -175,14 +183,17 @@ def test_a_reproduction_killed_by_sigkill_resumes_without_running_its_finished_r
 
 
 def test_a_store_and_its_table_are_pruned_whole_and_a_changed_table_keeps_it(tmp_path):
-    """metrics.parquet, written after the store's folder was published, is in its manifest:
-    `emasim runs prune` removes a finished store whole, and keeps one whose table changed."""
+    """metrics.parquet, written after the store's folder was published, is in its manifest,
+    and so is workers.log as the workers left it: `emasim runs prune` removes a finished
+    store whole, and keeps one whose table changed."""
     from typer.testing import CliRunner
 
     from emasim.cli import app
 
     for name in ("a", "b"):
         Store(tmp_path / "runs" / name, jobs_of([1]), {"what": name}).run()
+    (tmp_path / "runs" / "a" / LOG_FILE).write_text("a worker's warning\n")
+    Store(tmp_path / "runs" / "a", jobs_of([1]), {"what": "a"}).run()  # its log listed again
     with open(tmp_path / "runs" / "b" / METRICS_FILE, "ab") as table:
         table.write(b"an edit")
     done = CliRunner().invoke(

@@ -47,7 +47,7 @@ from pathlib import Path
 
 from ..errors import DamagedResult, EmasimError, OutputError, SimulationDiverged
 from ..jsonio import json_text
-from ..manifest import manifest_stamps, verify_files
+from ..manifest import list_file, manifest_stamps, verify_files
 from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
 from .batch import Job
 
@@ -208,6 +208,8 @@ class Store:
                         )
                     finally:
                         self.write_table(rows)  # every run that finished
+            # what the workers of a cluster it started wrote there, now closed: emasim's
+            list_file(self.folder, LOG_FILE)
         return rows
 
     def require_ok(self, rows: dict[str, dict]) -> None:
