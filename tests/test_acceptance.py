@@ -42,6 +42,7 @@ from emasim.analysis.frequency import first_crossing, gain_dB
 from emasim.cli import app
 from emasim.errors import InputError
 from emasim.experiments import acceptance as ac
+from emasim.experiments.batch import Job
 from emasim.experiments.store import read_table
 from emasim.output import foreign_files
 from emasim.scenarios.loader import load_scenario
@@ -395,3 +396,14 @@ def test_a_killed_battery_resumes_from_its_store_with_the_same_datasheet(tmp_pat
     for a, b in zip(again.curves["PI"]["responses"], first.curves["PI"]["responses"], strict=True):
         assert (a.input, a.excitation, a.output) == (b.input, b.excitation, b.output)
         assert np.array_equal(a.h, b.h) and np.array_equal(a.frequencies_Hz, b.frequencies_Hz)
+
+
+@pytest.mark.parametrize(
+    "point", [("small", 1), ("stiffness", 0.5), ("chirp", "large"), ("stall",)]
+)
+def test_a_points_tags_read_back_as_the_point(point):
+    """A battery job's point is kept as plain columns (a frequency given as a whole number
+    too) and read back as the key its measurement is looked up by."""
+    tags = ac.point_tags(point)
+    assert ac.point_of(Job(None, tags=tags)) == point
+    assert all(v is None or isinstance(v, float | str) for v in tags.values())

@@ -511,8 +511,8 @@ def point_tags(point: tuple) -> dict:
     """A point's tags, each a plain column: its name, its frequency or what it sweeps."""
     name, *rest = point
     detail = rest[0] if rest else None
-    hz = detail if isinstance(detail, float) else None
-    return {POINT: name, POINT_HZ: hz, POINT_OF: detail if isinstance(detail, str) else None}
+    of = detail if isinstance(detail, str) else None
+    return {POINT: name, POINT_HZ: None if detail is None or of else float(detail), POINT_OF: of}
 
 
 def point_of(job: Job) -> tuple:
