@@ -15,7 +15,7 @@ import pytest
 
 from emasim.errors import OutputError
 from emasim.experiments import runs
-from emasim.experiments.batch import Job
+from emasim.experiments.batch import Job, dask_client
 from emasim.experiments.reproduction import RUNS_TABLE, job_store, reproduce
 from emasim.experiments.store import (
     LOG_FILE,
@@ -204,3 +204,20 @@ def test_a_store_and_its_table_are_pruned_whole_and_a_changed_table_keeps_it(tmp
     assert f"kept, it holds files emasim did not write ({METRICS_FILE})" in " ".join(
         done.output.split()
     )
+
+
+def test_a_study_of_other_code_is_never_resumed(tmp_path, monkeypatch):
+    """A study's record and the robustness studies' folder key name the source digest: the
+    same study run by changed code is refused in its folder, and gets a folder of its own."""
+    from emasim.experiments import robustness
+    from emasim.experiments import runs as runs_module
+    from emasim.experiments.study import StudySpec, run_study
+
+    spec = StudySpec("speed-step", vary=("seed=1",), labels=("PI",), settings=tuple(SHORT))
+    with dask_client(processes=False) as client:
+        run_study(spec, tmp_path / "s", client=client)
+        before = robustness.study_folder("bench-step", 3, tmp_path)
+        monkeypatch.setattr(runs_module, "source_digest", lambda: "another source")
+        with pytest.raises(OutputError, match="version or source differ"):
+            run_study(spec, tmp_path / "s", client=client)
+    assert robustness.study_folder("bench-step", 3, tmp_path) != before

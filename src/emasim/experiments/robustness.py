@@ -77,12 +77,14 @@ def spec_for(scenario: str, runs: int, seed: int = DEFAULT_SEED) -> StudySpec:
 
 def study_key(scenario: str, specs: tuple[str, ...] = UNCERTAINTY, seed: int = DEFAULT_SEED) -> str:
     """12 hex digits of the experiment's resolved scenario, what a study varies (``specs``),
-    the draws' ``seed`` and the emasim version."""
+    the draws' ``seed``, the emasim version and the digest of its source: another code's
+    study is never resumed, nor shown as this code's."""
     from ..scenarios.loader import load_scenario
     from ..version import __version__
+    from .runs import source_digest
 
     resolved = load_scenario(scenario).model_dump(mode="json")
-    text = json.dumps([resolved, specs, seed, __version__], sort_keys=True)
+    text = json.dumps([resolved, specs, seed, __version__, source_digest()], sort_keys=True)
     return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 

@@ -7,7 +7,8 @@ plants (paired). Its runs are a job list on the job store (:mod:`.store`: the ru
 ``metrics.parquet``, ``workers.log``, resumed by the same command); its folder holds besides
 
 * ``study.json``: what the study is (scenario, variations, runs, seed, labels, settings, the
-  emasim version and a hash of every run's fully resolved scenario);
+  emasim version, the digest of its source and a hash of every run's fully resolved
+  scenario: another code's study is never resumed);
 * in ``metrics.parquet``, the columns ``run_id``, ``label``, ``sample``, ``status``, then each
   variation's value (the factor for a '*' variation), then every metric;
 * ``summary/``: ``summary.md`` and ``summary.json`` (each metric's distribution for each
@@ -96,12 +97,14 @@ class Plan:
 
     def record(self) -> dict:
         from ..version import __version__
+        from .runs import source_digest
 
         return {
             "study": self.spec.record(),
             "labels": self.labels,
             "samples": len(self.jobs) // max(len(self.labels), 1),
             "emasim_version": __version__,
+            "emasim_source_sha256": source_digest(),
             "scenarios_sha256": self.digest,
         }
 
@@ -120,8 +123,8 @@ class Plan:
             columns=self.fixed_columns,
             name=f"--out {folder}",
             refusal="holds another study (its scenario, --vary, --runs, --seeds, --label, "
-            "--set or the emasim version differ); a study is never replaced: the same "
-            "command resumes it, choose another --out for this one",
+            "--set, or the emasim version or source differ); a study is never replaced: the "
+            "same command of the same emasim resumes it, choose another --out for this one",
         )
 
 
