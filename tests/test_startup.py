@@ -54,3 +54,35 @@ def test_the_first_simulation_loads_numba():
         ".with_(duration_s=1e-3))"
     )
     assert "numba" in loaded_after(body).split(",")
+
+
+def test_the_first_simulation_spares_scipy_linalg():
+    """numba's BLAS check at its first cache load or compile finds scipy's BLAS on disk
+    (emasim.jit._spare_scipy_linalg) instead of importing scipy.linalg; numba's own check is
+    back for what follows, and a compiled np.dot still works (it imports BLAS itself)."""
+    body = (
+        "from emasim.scenarios.loader import load_scenario\n"
+        "from emasim.sim.engine import simulate\n"
+        "simulate(load_scenario('speed-step', controllers=['speed=pi']).setup()"
+        ".with_(duration_s=1e-3))\n"
+        "assert 'scipy.linalg' not in sys.modules\n"
+        "from numba.np import arraymath, linalg\n"
+        "assert arraymath._HAVE_BLAS and linalg.ensure_blas.__module__ == 'numba.np.linalg'\n"
+        "import numba, numpy as np\n"
+        "assert numba.njit(lambda x: x @ x)(np.arange(3.0)) == 5.0\n"
+    )
+    assert "numba" in loaded_after(body).split(",")
+
+
+def test_without_scipys_blas_on_disk_numba_checks_as_before():
+    """Where the file is not found, numba's own check runs (and imports scipy.linalg)."""
+    body = (
+        "import emasim.jit\n"
+        "emasim.jit._scipy_ships_cython_blas = lambda: False\n"
+        "from emasim.scenarios.loader import load_scenario\n"
+        "from emasim.sim.engine import simulate\n"
+        "simulate(load_scenario('speed-step', controllers=['speed=pi']).setup()"
+        ".with_(duration_s=1e-3))\n"
+        "assert 'scipy.linalg' in sys.modules\n"
+    )
+    assert "numba" in loaded_after(body).split(",")

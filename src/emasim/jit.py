@@ -10,11 +10,23 @@ or ``compile``) imports numba and makes the dispatcher, ``numba.njit(*signature,
 Compiled code that calls a Deferred sees the dispatcher: numba is taught (:func:`_teach_numba`)
 to type a Deferred as its dispatcher, and numba's inliner (``inline="always"``) reads the
 options and the Python function through the attributes, as it does from a dispatcher.
+
+numba's first compile or cache load in a process imports its array library
+(``numba.np.arraymath``), which checks once that BLAS is there by importing ``scipy.linalg``:
+0.15 to 0.25 s of every run, for a module none of emasim's compiled code calls into.
+:func:`_spare_scipy_linalg` answers that one check from scipy's files instead (the answer is
+the same); every later check, such as the compile of a function that calls ``np.dot``, is
+numba's own.
 """
 
 import functools
+import importlib.machinery
+import importlib.util
+import sys
+from pathlib import Path
 
 _taught = False
+_spared = False
 
 
 def _teach_numba() -> None:
@@ -30,6 +42,49 @@ def _teach_numba() -> None:
         return types.Dispatcher(value.dispatcher)
 
     _taught = True
+
+
+def _scipy_ships_cython_blas() -> bool:
+    """Whether scipy's ``linalg/cython_blas`` extension is installed, found without importing
+    it (importing it imports all of ``scipy.linalg``)."""
+    scipy = sys.modules.get("scipy")
+    if scipy is not None:
+        places = list(getattr(scipy, "__path__", ()))
+    else:
+        spec = importlib.util.find_spec("scipy")
+        places = list(spec.submodule_search_locations or ()) if spec is not None else []
+    return any(
+        (Path(place) / "linalg" / f"cython_blas{suffix}").is_file()
+        for place in places
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES
+    )
+
+
+def _spare_scipy_linalg() -> None:
+    """Let numba's import-time BLAS check (``numba.np.arraymath._check_blas``, run by the
+    first compile or cache load) find ``scipy.linalg.cython_blas`` on disk rather than import
+    all of ``scipy.linalg`` (module docstring). Only that first check is answered so: it puts
+    numba's own ``ensure_blas`` back before it returns, and when the extension is not on disk
+    it runs numba's check, which raises as before. numba's check that scipy's BLAS integers
+    are as wide as numba's still runs."""
+    global _spared
+    if _spared:
+        return
+    _spared = True
+    if "numba.np.arraymath" in sys.modules:  # numba has checked already
+        return
+    from numba.np import linalg
+
+    numbas_check = linalg.ensure_blas
+
+    def first_check() -> None:
+        linalg.ensure_blas = numbas_check
+        if not _scipy_ships_cython_blas():
+            numbas_check()  # raises ImportError, as numba's check does without scipy's BLAS
+            return
+        getattr(linalg, "_check_lapack_int_width", lambda: None)()
+
+    linalg.ensure_blas = first_check
 
 
 class Deferred:
@@ -49,6 +104,7 @@ class Deferred:
             import numba
 
             _teach_numba()
+            _spare_scipy_linalg()
             self._dispatcher = numba.njit(*self._signature, **self._options)(self.py_func)
         return self._dispatcher
 
