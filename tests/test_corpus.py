@@ -16,11 +16,9 @@ installed program in a few subprocess cases):
   to one folder never lose data, and a killed tuning study resumes.
 """
 
-import contextlib
 import json
 import os
 import signal
-import sqlite3
 import stat
 import subprocess
 import sys
@@ -42,6 +40,7 @@ from emasim.control.pid import PositionPID, SpeedPI
 from emasim.control.rbf import PositionSlidingMode
 from emasim.control.smc import SpeedSMC
 from emasim.control.super_twisting import SpeedSuperTwisting
+from emasim.experiments.store import read_table
 from emasim.output import MARKER, foreign_files
 from emasim.plant.contact import ContactParams
 from emasim.plant.elements.linkage import LinkageParams
@@ -766,8 +765,6 @@ CLI = [
         ["reproduce", "--robustness", "--only", "speed-step"],
         "both",
     ),
-    ("tune-storage-unknown-scheme", [*TUNE, "--storage", "nosuchdb://x"], "--storage"),
-    ("tune-storage-user-file", [*TUNE, "--storage", "sqlite:///victim.txt"], "--storage"),
     ("tune-save-user-file", [*TUNE, "--save", "victim.toml"], "--save"),
     ("tune-save-user-file-force", [*TUNE, "--save", "victim.toml", "--force"], "--save"),
     ("tune-save-under-user-file", [*TUNE, "--save", "victim.txt/t.toml"], "--save"),
@@ -975,8 +972,6 @@ REAL_STDERR = [
     "set-bare-word",
     "out-user-file",
     "mechanism-fmu-untrusted",
-    "tune-storage-unknown-scheme",
-    "tune-storage-user-file",
     "export-fmu-user-file",
 ]
 
@@ -1011,32 +1006,34 @@ def test_process_concurrent_runs_to_one_folder_lose_nothing(work):
     assert not leftovers(work)
 
 
-def running_trials(database: Path) -> int:
-    """How many trials the Optuna study database records as running (0 while it has none)."""
-    if not database.exists():
-        return 0
-    try:
-        with contextlib.closing(sqlite3.connect(f"file:{database}?mode=ro", uri=True)) as db:
-            return db.execute("SELECT count(*) FROM trials WHERE state = 'RUNNING'").fetchone()[0]
-    except sqlite3.OperationalError:  # no trials table yet, or the writer holds the lock
-        return 0
+def finished_trials(work: Path) -> list[Path]:
+    """The meta.json of every trial the tuning's job store under ``work`` has finished."""
+    found = work.glob("runs/tune/jobs-*/runs/*/meta.json")
+    return sorted(path for path in found if not path.parent.name.startswith("."))  # published
 
 
 def test_process_killed_tuning_resumes(work):
-    args = ["tune", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.2", "--trials", "3"]
-    args += ["--storage", "sqlite:///s.db", "--save", "t.toml"]
+    """A tuning killed once a trial has finished: the same command finishes it, keeps every
+    trial finished before (not run again) and runs only the rest."""
+    args = ["tune", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.5", "--trials", "12"]
+    args += ["--save", "t.toml"]
     proc = start(work, *args)
-    wait_for(lambda: running_trials(work / "s.db"), proc)
+    wait_for(lambda: finished_trials(work), proc)
     assert proc.poll() is None, "the tuning ended before it could be killed"
     kill(proc)
-    assert running_trials(work / "s.db") == 1  # killed during its first trial
-    assert not (work / "t.toml").exists()
+    before = {path: path.read_bytes() for path in finished_trials(work)}
+    assert before and not (work / "t.toml").exists()
     rerun = subprocess.run(
         emasim(*args), cwd=work, capture_output=True, text=True, timeout=HANG_GUARD_S
     )
     assert rerun.returncode == 0, rerun.stderr
     assert "Traceback" not in rerun.stdout + rerun.stderr
     assert (work / "t.toml").read_text().startswith("# emasim tune")
+    assert {path: path.read_bytes() for path in before} == before  # kept, not run again
+    (store,) = work.glob("runs/tune/jobs-*")
+    table = read_table(store)
+    assert len(table) == len(finished_trials(work)) > len(before)
+    assert set(table["status"]) == {"ok"} and set(table["set"]) == {"speed=pi"}
     assert not leftovers(work)
 
 

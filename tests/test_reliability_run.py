@@ -281,7 +281,6 @@ def outcome(command: str, out: Path, *settings: str):
         args = [*command_line("study", "cosim-step", out), "--label", "PID", "--traces", *fixed]
     else:
         args = [*command_line("tune", "cosim-step", out), "--controller", "pid", *fixed]
-        args += ["--storage", f"sqlite:///{out.parent / (out.name + '.db')}"]
     result = invoke(*args)
     assert result.exit_code == 0, result.output
     if command == "tune":

@@ -1,11 +1,10 @@
 """Studies and tunings that never hang, never stop at one failed run and never leave a refusal
 behind (issue 26): a --scheduler that is not a Dask scheduler, a run that fails for any
-reason, a damaged run folder, a full disk, two tunings on one new storage."""
+reason, a damaged run folder, a full disk, two tunings of one job store at once."""
 
 import errno
 import http.server
 import json
-import multiprocessing
 import socket
 import subprocess
 import sys
@@ -15,7 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from emasim.cli import _disk_full, app
-from emasim.errors import InputError
+from emasim.errors import InputError, OutputError
 from emasim.experiments import batch, runs
 from emasim.experiments.batch import dask_client
 from emasim.experiments.store import LOG_FILE, RUNS_FOLDER, read_table
@@ -233,38 +232,28 @@ def test_a_distribution_numpy_cannot_draw_is_refused(text, says):
     assert parse_variation("seed=integers(0, 9223372036854775807)").distribution[1][1] == 2**63 - 1
 
 
-# --- two tunings on one new storage ---------------------------------------------------------
+# --- two tunings of one job store at once -----------------------------------------------------
 
 
-def _open(url, barrier, answers):
-    import optuna
+def test_a_tuning_whose_store_another_holds_is_refused_in_one_line(tmp_path):
+    """Two tunings of the same scenario and seed share a job store: while one holds it, the
+    other is refused before it runs a trial, and the store is left as it was."""
+    from emasim.scenarios.loader import load_scenario
+    from emasim.tuning import tune_variant, tuning_store
 
-    from emasim.tuning import open_storage
+    scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=["duration_s=0.05"])
+    holder = tuning_store(tmp_path, scenario, seed=0)
+    with holder.opened():
+        before = _snapshot(tmp_path)
+        second = tuning_store(tmp_path, scenario, seed=0)
+        assert second.folder == holder.folder
+        with pytest.raises(OutputError, match="another emasim process is running it"):
+            tune_variant(scenario, "PI", scenario.controllers, 2, second)
+        assert _snapshot(tmp_path) == before
 
-    barrier.wait()
-    try:
-        storage = open_storage(url)
-        optuna.create_study(storage=storage, study_name="s", load_if_exists=True)
-        answers.put("ok")
-    except Exception as err:
-        answers.put(f"{type(err).__name__}: {err}")
 
-
-def test_tunings_that_first_use_a_storage_at_once_are_safe(tmp_path):
-    from emasim.tuning import open_storage
-
-    open_storage(f"sqlite:///{tmp_path / 'warm.db'}")  # the database layers, loaded before the fork
-    context = multiprocessing.get_context("fork")
-    for attempt in range(3):
-        url = f"sqlite:///{tmp_path / f'tune-{attempt}.db'}"
-        barrier, answers = context.Barrier(4), context.Queue()
-        workers = [context.Process(target=_open, args=(url, barrier, answers)) for _ in range(4)]
-        for worker in workers:
-            worker.start()
-        said = [answers.get(timeout=60) for _ in workers]
-        for worker in workers:
-            worker.join()
-        assert said == ["ok"] * 4
+def _snapshot(root):
+    return {p: p.read_bytes() if p.is_file() else None for p in sorted(root.rglob("*"))}
 
 
 def test_a_cosimulation_rule_is_refused_before_the_compile_notice(tmp_path, monkeypatch):

@@ -1,7 +1,8 @@
-"""Fair tuning: one cost, one search, one budget for every controller set; resumable."""
+"""Fair tuning: one cost, one search, one budget for every controller set; every trial a run
+of a job store, so a tuning run again resumes."""
 
 import json
-import sqlite3
+import shutil
 import tomllib
 
 import numpy as np
@@ -16,6 +17,7 @@ from emasim.control.pid import GAIN_SPAN, PositionPID, SpeedPI
 from emasim.experiments import batch
 from emasim.experiments.batch import dask_client, map_runs
 from emasim.experiments.runs import run_scenario
+from emasim.experiments.store import read_table
 from emasim.scenarios.loader import (
     load_scenario,
     read_scenario_file,
@@ -29,15 +31,32 @@ from emasim.tuning import (
     TUNED_HEADER,
     _controllers_with,
     search_space,
-    study_key,
-    trial_cost,
     tune_scenario,
     tune_variant,
     tuned_toml,
+    tuning_store,
     with_explicit_gains,
 )
 
 SHORT = ["duration_s=0.05", "load.motor_torque_Nm=[]"]
+
+
+@pytest.fixture
+def simulated(monkeypatch):
+    """The trials simulated from here on (each trial's run, counted as it starts)."""
+    runs = []
+
+    def counted(scenario, *args, **kwargs):
+        runs.append(scenario)
+        return run_scenario(scenario, *args, **kwargs)
+
+    monkeypatch.setattr(tuning, "run_scenario", counted)
+    return runs
+
+
+def trials_of(result) -> list:
+    """A search's trials as (number, params, value, user attributes), to compare searches."""
+    return [(t.number, t.params, t.value, t.user_attrs) for t in result.study.trials]
 
 
 def test_cost_is_tracking_error_plus_a_price_on_chattering():
@@ -108,15 +127,16 @@ def test_a_pid_cascade_is_tuned_as_five_independent_gains_from_its_bandwidth_des
     assert np.allclose(before.data, after.data, rtol=1e-12, atol=0, equal_nan=True)
 
 
-def test_the_neighbourhood_check_records_the_best_neighbour_and_resumes(tmp_path):
+def test_the_neighbourhood_check_records_the_best_neighbour_and_resumes(tmp_path, simulated):
     """After the search, NEIGHBOURS points of a Latin hypercube within x1.5 of each knob about
     the optimum (again about a better one found, at most CHECK_ROUNDS times): the record
     names the last check's best point and its cost over that check's optimum; the points are
-    the study's, so a second call runs none again."""
+    runs of the store, so a second call runs none again and finds the same search."""
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
     budget = Budget(trials=3, patience_per_knob=None, widenings=0, neighbours=6)
-    url = f"sqlite:///{tmp_path / 's.db'}"
-    result = tune_variant(scenario, "PI", scenario.controllers, budget, url)
+    store = tuning_store(tmp_path, scenario, seed=0)
+    result = tune_variant(scenario, "PI", scenario.controllers, budget, store)
+    assert len(simulated) == len(result.study.trials)
     check = result.record()["neighbourhood"]
     assert check["points"] == 6
     checks = result.study.user_attrs["checks"]
@@ -134,8 +154,11 @@ def test_the_neighbourhood_check_records_the_best_neighbour_and_resumes(tmp_path
     assert result.best == min(last["cost"], best.value)
     converged = check["best_cost_ratio"] >= 1 - CHECK_TOLERANCE
     assert converged or len(checks) == tuning.CHECK_ROUNDS  # checked again until it holds
-    again = tune_variant(scenario, "PI", scenario.controllers, budget, url)
-    assert len(again.study.trials) == len(result.study.trials)  # nothing ran twice
+    simulated.clear()
+    again = tune_variant(
+        scenario, "PI", scenario.controllers, budget, tuning_store(tmp_path, scenario, seed=0)
+    )
+    assert simulated == [] and trials_of(again) == trials_of(result)  # nothing ran twice
     assert again.trials == 3  # the search's own trials: the check's are not counted
 
 
@@ -146,10 +169,10 @@ def test_search_space_covers_both_loops_of_a_cascade():
     assert all(lo < hi for lo, hi in space.values())
 
 
-def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_path):
+def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_path, simulated):
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
-    storage = f"sqlite:///{tmp_path / 'study.db'}"
-    result = tune_variant(scenario, "PI", scenario.controllers, 4, storage, seed=1)
+    store = tuning_store(tmp_path, scenario, seed=1)
+    result = tune_variant(scenario, "PI", scenario.controllers, 4, store, seed=1)
     tuned, best, given, study = result.controllers, result.best, result.given, result.study
     # the gains given: those of the comparison's PI set, which the choice starts from, as
     # the independent gains they stand for
@@ -164,23 +187,34 @@ def test_tuning_starts_from_the_given_gains_never_ends_worse_and_resumes(tmp_pat
     }
     assert given == study.trials[0].value and best <= given
     assert tuned.speed.kp_A_s_per_rad == pytest.approx(study.best_params["speed.kp_A_s_per_rad"])
-    again = tune_variant(scenario, "PI", scenario.controllers, 6, storage, seed=1).study
-    complete = [t for t in again.trials if t.state == optuna.trial.TrialState.COMPLETE]
-    assert len(complete) == 6  # resumed: two more, not six more
+    simulated.clear()
+    again = tune_variant(
+        scenario, "PI", scenario.controllers, 6, tuning_store(tmp_path, scenario, seed=1), seed=1
+    )
+    complete = [t for t in again.study.trials if t.state == optuna.trial.TrialState.COMPLETE]
+    assert len(complete) == 6 and len(simulated) == 2  # resumed: two more, not six more
+    assert trials_of(again)[:4] == trials_of(result)  # the same four trials, read back
 
 
 def test_every_controller_set_gets_the_same_budget_and_the_file_records_it(tmp_path):
+    """Every set gets the same budget; the store's table holds one row per trial, with its
+    set, its gains and every metric of its run, the cost among them."""
     raw, _ = read_scenario_file("speed-step")
     raw["duration_s"] = 0.05
     raw["load"] = {}
     scenario = validate_scenario(raw)
-    storage = f"sqlite:///{tmp_path / 'study.db'}"
-    tuned_raw, results = tune_scenario(raw, scenario, 3, storage)
+    store = tuning_store(tmp_path, scenario, seed=0)
+    tuned_raw, results = tune_scenario(raw, scenario, 3, store)
     assert list(results) == ["PI", "SMC", "ST-SMC", "ST-SMC+GPIO"]
-    for label, variant in scenario.variants():
-        name = f"speed-step:{label}:{study_key(variant)}"
-        study = optuna.load_study(study_name=name, storage=storage)
-        assert len(study.trials) == 3
+    table = read_table(store.folder)
+    assert list(table["set"]) == [label for label in results for _ in range(3)]
+    assert set(table["status"]) == {"ok"} and "settling_time_s" in table
+    for label, result in results.items():
+        rows = table[table["set"] == label]
+        costs = [t.value for t in result.study.trials]
+        assert list(rows["tuning_cost"]) == costs  # the cost told is the run's own metric
+        knobs = list(result.study.best_params)
+        assert rows[knobs].to_dict("records") == [t.params for t in result.study.trials]
         assert results[label].best <= results[label].given
     tuned = validate_scenario(tuned_raw)
     assert tuned.tuning["budget"] == "3 trials per controller set"
@@ -208,8 +242,6 @@ def test_tune_command_writes_a_valid_scenario(tmp_path):
             *sum([["--set", s] for s in SHORT], []),
             "--trials",
             "2",
-            "--storage",
-            f"sqlite:///{tmp_path / 's.db'}",
             "--save",
             str(save),
         ],
@@ -220,6 +252,8 @@ def test_tune_command_writes_a_valid_scenario(tmp_path):
     record = tuned.tuning["sets"]["speed=adrc"]  # a single run: its controllers label
     assert record.knobs == 2 and record.trials >= 2
     assert tuned.tuning["budget"].startswith("2 trials per controller set")
+    (store,) = tuning.STORE_ROOT.glob("jobs-*")  # its trials' runs, in the store
+    assert set(read_table(store)["set"]) == {"speed=adrc"}
 
 
 def test_the_tuned_file_keeps_the_scenario_files_comments_and_layout():
@@ -246,18 +280,19 @@ def test_tuning_reports_each_trial(tmp_path):
         "PI",
         scenario.controllers,
         3,
-        f"sqlite:///{tmp_path / 's.db'}",
+        tuning_store(tmp_path, scenario, seed=0),
         progress=lambda done, total: seen.append((done, total)),
     )
     assert seen == [(0, 3), (1, 3), (2, 3), (3, 3)]
 
 
-def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path, monkeypatch):
+def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(
+    tmp_path, monkeypatch, simulated
+):
     """A range far below the speed loop's useful bandwidth (5-6 Hz): it is first stretched to
     the gains given (a 70 Hz design, the first trial), where the optimum sits, on the upper
     bound; that bound moves out by WIDEN_FACTOR, and the next round searches the wider
-    range with as many trials; a resumed study continues from its widened range without new
-    trials."""
+    range with as many trials; run again, it finds the same search without new trials."""
     monkeypatch.setattr(SpeedPI, "tunable_ranges", lambda self: {"bandwidth_Hz": (5.0, 6.0)})
     monkeypatch.setattr(SpeedPI, "with_explicit_gains", lambda self, plant: self)  # its own knob
     scenario = load_scenario(
@@ -265,9 +300,10 @@ def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path,
         controllers=["speed=pi"],
         settings=[*SHORT, "controllers.speed={name = 'pi', bandwidth_Hz = 70}"],
     )
-    storage = f"sqlite:///{tmp_path / 'study.db'}"
     budget = Budget(trials=3, patience_per_knob=None, widenings=2, neighbours=0)
-    result = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
+    result = tune_variant(
+        scenario, "PI", scenario.controllers, budget, tuning_store(tmp_path, scenario, 0)
+    )
     given = scenario.controllers.speed.bandwidth_Hz
     rounds = result.study.user_attrs["widenings"]
     low, high = result.widened["speed.bandwidth_Hz"]
@@ -276,8 +312,12 @@ def test_an_optimum_on_a_bound_widens_the_range_and_the_search_goes_on(tmp_path,
     highs = [t.distributions["speed.bandwidth_Hz"].high for t in result.study.trials]
     assert highs[:3] == [given] * 3 and highs[3] == pytest.approx(given * WIDEN_FACTOR)
     assert result.on_bound == {} or rounds == budget.widenings  # flagged only when out of rounds
-    again = tune_variant(scenario, "PI", scenario.controllers, budget, storage)
+    simulated.clear()
+    again = tune_variant(
+        scenario, "PI", scenario.controllers, budget, tuning_store(tmp_path, scenario, 0)
+    )
     assert again.trials == result.trials and again.widened == result.widened
+    assert simulated == [] and trials_of(again) == trials_of(result)
 
 
 def test_the_search_stops_once_converged(tmp_path):
@@ -286,7 +326,7 @@ def test_the_search_stops_once_converged(tmp_path):
     # passed
     budget = Budget(trials=50, patience_per_knob=2, tolerance=1.0, widenings=0, neighbours=0)
     result = tune_variant(
-        scenario, "PI", scenario.controllers, budget, f"sqlite:///{tmp_path / 's.db'}"
+        scenario, "PI", scenario.controllers, budget, tuning_store(tmp_path, scenario, 0)
     )
     assert result.trials == 5 and result.stopped == "converged"
     record = result.record()
@@ -322,16 +362,8 @@ def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproduci
     searches = []
     with dask_client(workers=2, processes=False) as client:
         for k in range(2):
-            result = tune_variant(
-                scenario,
-                "PID",
-                scenario.controllers,
-                4,
-                f"sqlite:///{tmp_path / f'{k}.db'}",
-                3,
-                None,
-                client,
-            )
+            store = tuning_store(tmp_path / str(k), scenario, 3, client)
+            result = tune_variant(scenario, "PID", scenario.controllers, 4, store, 3, None, client)
             searches.append([(t.params, t.value) for t in result.study.trials])
     assert searches[0] == searches[1] and len(searches[0]) == 4
     assert batches == [2, 2, 2, 2]  # each search: two pairs handed to the facility
@@ -339,29 +371,32 @@ def test_trials_run_in_batches_on_the_study_facility_and_the_search_is_reproduci
     candidate = scenario.model_copy(
         update={"controllers": _controllers_with(scenario.controllers, params)}
     )
-    assert trial_cost(candidate, scenario.plant.motor.max_current_A)[0] == value
+    assert tuning_cost(run_scenario(candidate), scenario.plant.motor.max_current_A) == value
 
 
-def test_a_killed_trial_is_asked_again_with_its_gains(tmp_path):
-    """A trial left running by a killed process (its heartbeat stops) is failed once the
-    grace period has passed, and the next batch runs its gains again."""
+def test_a_killed_tuning_runs_only_the_trials_it_lacks(tmp_path, simulated):
+    """A tuning killed while a trial ran (its run folder never published: here, one taken
+    away): the same tuning again runs that trial alone, and its search is the one an
+    uninterrupted tuning makes."""
     scenario = load_scenario("speed-step", controllers=["speed=pi"], settings=SHORT)
-    url = f"sqlite:///{tmp_path / 's.db'}"
-    first = tune_variant(scenario, "PI", scenario.controllers, 1, url)
-    storage = tuning.open_storage(url)
-    study = optuna.load_study(study_name=first.study.study_name, storage=storage)
-    distributions = first.study.trials[0].distributions
-    with pytest.warns(UserWarning, match="Heartbeat"):
-        killed = study.ask(distributions)
-    storage.record_heartbeat(killed._trial_id)
-    with sqlite3.connect(tmp_path / "s.db") as db:  # its process died an hour ago: no waiting
-        db.execute("UPDATE trial_heartbeats SET heartbeat = datetime('now', '-1 hour')")
-    later = tune_variant(scenario, "PI", scenario.controllers, 2, storage)
-    states = {t.number: t.state for t in later.study.trials}
-    assert states[killed.number] == optuna.trial.TrialState.FAIL
-    redone = [t for t in later.study.trials if t.number > killed.number]
-    assert redone[0].params == killed.params and redone[0].state.is_finished()
-    assert later.trials == 2
+    whole = tune_variant(
+        scenario, "PI", scenario.controllers, 4, tuning_store(tmp_path / "a", scenario, 0)
+    )
+    store = tuning_store(tmp_path / "b", scenario, 0)
+    tune_variant(scenario, "PI", scenario.controllers, 4, store)
+    lost = sorted((store.folder / "runs").iterdir())[2]
+    shutil.rmtree(lost)
+    simulated.clear()
+    again = tune_variant(
+        scenario, "PI", scenario.controllers, 4, tuning_store(tmp_path / "b", scenario, 0)
+    )
+    assert len(simulated) == 1 and (lost / "metrics.json").is_file()
+    assert trials_of(again) == trials_of(whole)
+    assert (
+        read_table(store.folder)
+        .drop(columns="run_id")
+        .equals(read_table(tmp_path / "a" / store.folder.name).drop(columns="run_id"))
+    )
 
 
 def test_a_better_neighbour_is_checked_again_about_itself():
@@ -379,7 +414,7 @@ def test_a_better_neighbour_is_checked_again_about_itself():
     def cost(params):
         return 1.0 + sum(np.log(params[k] / target[k]) ** 2 for k in params)
 
-    def evaluate_params(points):
+    def evaluate_params(points, numbers):
         return [(cost(p), cost(p), 0.0) for p in points]
 
     study = optuna.create_study()

@@ -507,10 +507,6 @@ def tune(
     scheduler: Annotated[
         str | None, typer.Option(help="a Dask scheduler address to run the trials on")
     ] = None,
-    storage: Annotated[
-        str | None,
-        typer.Option(help="Optuna storage URL (default sqlite:///runs/tune/SCENARIO.db)"),
-    ] = None,
     save: Annotated[
         Path | None,
         typer.Option(help="tuned scenario file (default a fresh runs/tune/SCENARIO-TIME.toml)"),
@@ -520,8 +516,9 @@ def tune(
 ) -> None:
     """Tune every controller set of a scenario under the same cost and rule (Optuna): trials
     in proportion to its knobs, an early stop once converged, a range widened where the optimum
-    sits on its bound; resumable (a study is keyed by the fully resolved scenario); writes the
-    scenario with the tuned gains and a record of each set's search."""
+    sits on its bound; every trial a run of a job store (runs/tune/jobs-KEY, keyed by the fully
+    resolved scenario, the seed and the trials at once), so the same command resumes; writes
+    the scenario with the tuned gains and a record of each set's search."""
     from .experiments.batch import check_scheduler, dask_client
     from .naming import RUNS_ROOT, fresh_file, slug
     from .output import check_file, write_file
@@ -533,12 +530,12 @@ def tune(
         validate_scenario,
     )
     from .tuning import (
+        STORE_ROOT,
         check_tunable,
-        default_storage,
         is_tuned_scenario,
-        open_storage,
         tune_scenario,
         tuned_toml,
+        tuning_store,
     )
 
     budget = Budget(trials, trials_per_knob, patience_per_knob or None, tolerance, widen)
@@ -555,12 +552,9 @@ def tune(
         sc = validate_scenario(raw, source)
         check_tunable(sc)
         if scheduler is not None:
-            check_scheduler(scheduler)  # before the storage is made
-        root = RUNS_ROOT / "tune"
+            check_scheduler(scheduler)
         if save is not None:
             check_file(save, force, is_tuned_scenario, "--save")
-        url = storage or default_storage(root / f"{slug(sc.name)}.db")
-        study_storage = open_storage(url)
     except EmasimError as err:
         _fail(err)
     _notice_compile()
@@ -583,8 +577,9 @@ def tune(
 
     try:
         with bar, dask_client(scheduler, workers, processes=False) as client:
-            tuned, _ = tune_scenario(raw, sc, budget, study_storage, seed, report, progress, client)
-        target = save or fresh_file(root, f"{slug(sc.name)}", ".toml")
+            store = tuning_store(STORE_ROOT, sc, seed, client)
+            tuned, _ = tune_scenario(raw, sc, budget, store, seed, report, progress, client)
+        target = save or fresh_file(RUNS_ROOT / "tune", f"{slug(sc.name)}", ".toml")
         write_file(
             target,
             tuned_toml(tuned, sc.name, text),
@@ -594,7 +589,7 @@ def tune(
         )
     except EmasimError as err:
         _fail(err)
-    log.info(f"tuned scenario written to {target} (study in {url})")
+    log.info(f"tuned scenario written to {target} (its trials in {store.folder})")
 
 
 @app.command()

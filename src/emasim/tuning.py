@@ -18,26 +18,23 @@ How long a set is searched is a :class:`emasim.search_rules.Budget`: trials in p
 its knobs (a fixed count for every set favours the one with fewer), an early stop once the best
 cost has stopped improving, and a range widened where the optimum sits on its bound. The tuned
 file's ``[tuning]`` record states the rule and, per set, the trials it used, why it stopped,
-the ranges widened and any optimum still on a bound. The trials of a batch run through the
-study facility (emasim.experiments.batch.map_runs), as many at once as the Dask client has
-workers, and are told to the sampler in trial order.
+the ranges widened and any optimum still on a bound.
 
-Studies live in SQLite by default (any SQLAlchemy URL works). A study is named by the scenario,
-the label and a hash of the fully resolved single-run scenario (:func:`study_key`), so a changed
-plant, sensor, load or solver starts a new study, and an unchanged one resumes where it stopped.
-Running trials send a heartbeat: a trial whose process was killed is failed once its heartbeat
-is HEARTBEAT_GRACE_S old and asked again with the same gains by the next batch, so a kill at any
-moment, during the first trial included, costs at most that batch. Several processes or
-machines can tune one study through a shared RDB storage (e.g. PostgreSQL), each asking and
-telling its own trials.
+Every trial is a job of a job store (:mod:`emasim.experiments.store`, :func:`tuning_store`):
+``runs/tune/jobs-<key>``, keyed by the fully resolved scenario, the seed, the trials run at
+once, emasim's version and source. Each batch of trials is added to it and run on the Dask
+client (as many at once as it has worker threads); its table, ``metrics.parquet``, holds one
+row per trial: the set, the trial's number and kind, its gains, its status and every metric
+of the run, with the cost's two terms. The sampler is told the costs in trial order, so a seed
+and a batch size fix the search. The search itself lives in memory: run again, the same
+command asks the same trials, finds the runs it finished before in the store and runs only
+the rest, so a kill at any moment costs at most the runs it had in flight, and a larger budget
+goes on from where the smaller one ended.
 """
 
-import contextlib
 import hashlib
 import json
 import math
-import sqlite3
-import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -45,24 +42,28 @@ from pathlib import Path
 import optuna
 
 from .analysis.pareto import pareto_front, thinned
-from .analysis.report import CHECK_TOLERANCE, COST_FORMULA, tuning_terms, weighted_cost
+from .analysis.report import CHECK_TOLERANCE, COST_FORMULA, tuning_terms
 from .config import hard_limits
-from .errors import InputError, SimulationDiverged
-from .experiments.runs import simulate_scenario
+from .errors import EmasimError, InputError
+from .experiments.batch import Job
+from .experiments.runs import run_scenario
+from .experiments.store import DIVERGED, OK, RUN_ID, Measured, Store, keyed, metrics_only
+from .naming import RUNS_ROOT, slug
 from .search_rules import Budget, bound_side, converged, widened
 from .sim.cosim import check_runnable
 from .toml_text import laid_over
 
 DIVERGED_COST = 1e3
 LOOPS = ("position", "speed")
-HEARTBEAT_S = 1  # a running trial tells the storage it is alive this often
-HEARTBEAT_GRACE_S = 5  # ... and is taken as killed when silent this long
 GIVEN = "given_gains"  # user attribute of the first trial: the scenario's own gains
 NEIGHBOUR = "neighbour"  # user attribute of a neighbourhood-check point: its index
 CHECK_STRIDE = 100_000  # neighbour indices of successive checks of one study start this apart
 CHECK_ROUNDS = 3  # checks about each new optimum a better neighbour gives, at most
 NEIGHBOUR_SPAN = 1.5  # ... each knob within x1.5 either way (+-50 %, in log space)
 TRACKING, CHATTER = "tracking", "chatter"  # user attributes: a trial's two cost terms
+COST_METRIC = "tuning_cost"  # a trial's cost: its run's metric (analysis.report.tuning_cost)
+TERMS = {TRACKING: "tuning_tracking", CHATTER: "tuning_chatter"}  # ... and its terms' metrics
+STORE_ROOT = RUNS_ROOT / "tune"  # the tunings' job stores (tuning_store)
 TUNED_HEADER = "# emasim tune:"  # first line of every tuned scenario file emasim writes
 
 
@@ -100,79 +101,27 @@ def search_space(controllers) -> dict[str, tuple[float, float]]:
     }
 
 
-def default_storage(path: Path) -> str:
-    """The SQLite URL of a study database file."""
-    return f"sqlite:///{path}"
+def tuning_store(root: Path, scenario, seed: int, client=None) -> Store:
+    """The job store of a tuning of ``scenario`` (its fully resolved table: every set of a
+    comparison) with sampler ``seed``, run on ``client``, under ``root`` (module docstring):
+    the same tuning finds it again and resumes; another scenario, seed, batch size or emasim
+    source gets one of its own."""
+    record = {
+        "facility": "tune",
+        "scenario": scenario.name,
+        "scenario_sha256": study_key(scenario, full=True),
+        "seed": seed,
+        "batch": trials_at_once(client),
+    }
+    return keyed(root, [], record, record_file="tuning.json", measure=measure_trial)
 
 
-def _sqlite_path(url: str) -> Path | None:
-    return Path(url.removeprefix("sqlite:///")) if url.startswith("sqlite:///") else None
-
-
-def _is_optuna_database(path: Path) -> bool:
-    """True for an SQLite file that holds Optuna's tables (so tuning only adds studies)."""
-    try:
-        with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as db:
-            names = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
-    except sqlite3.Error:
-        return False
-    return {"studies", "trials", "version_info"} <= names
-
-
-def open_storage(url: str):
-    """Optuna's RDB storage at ``url``, with heartbeats and retries of killed trials.
-
-    Refused with one line: an SQLite file that exists but is not an Optuna database (it is
-    never written to), a folder, a URL no database driver takes, a database that cannot open.
-    """
-    from .output import check_parents
-
-    path = _sqlite_path(url)
-    if path is None:
-        return _rdb_storage(url)
-    check_parents(path, "--storage")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with _creating(path):
-        if path.exists() and not (path.is_file() and _is_optuna_database(path)):
-            raise InputError(
-                f"--storage {url}: {path} exists and is not an Optuna study database; "
-                "emasim never writes into it (choose another path)"
-            )
-        if not path.exists():
-            return _rdb_storage(url)  # its tables made under the lock
-    return _rdb_storage(url)
-
-
-def _creating(path: Path):
-    """Hold the lock on ``path``'s folder while the SQLite database there is checked and its
-    tables made: two tunings that first use a new storage at once would both create them
-    ("table ... already exists"); the second waits, then finds them."""
-    from .output import locked
-
-    return locked(path.parent)
-
-
-def _rdb_storage(url: str):
-    """Optuna's RDBStorage at ``url`` (open_storage), or InputError with its first line."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            return optuna.storages.RDBStorage(
-                url,
-                heartbeat_interval=HEARTBEAT_S,
-                grace_period=HEARTBEAT_GRACE_S,
-                heartbeat_stale_trial_callback=optuna.storages.RetryHeartbeatStaleTrialCallback(),
-            )
-    except Exception as err:  # SQLAlchemy raises many kinds: say the first line of it
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise InputError(f"--storage {url}: cannot open ({first})") from None
-
-
-def study_key(scenario) -> str:
-    """A short hash of the fully resolved single-run scenario (its tuning record left out)."""
+def study_key(scenario, full: bool = False) -> str:
+    """A hash of the fully resolved scenario (its tuning record left out): 16 hex digits, or
+    all 64 with ``full``."""
     resolved = scenario.model_dump(mode="json", exclude={"tuning"})
     text = json.dumps(resolved, sort_keys=True, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    return hashlib.sha256(text.encode()).hexdigest()[: None if full else 16]
 
 
 def is_tuned_scenario(path: Path) -> bool:
@@ -253,40 +202,35 @@ def check_tunable(scenario) -> None:
     check_runnable(scenario, trust_fmu=False)
 
 
-def trial_cost(scenario, max_current: float) -> tuple[float, float, float]:
-    """The tuning cost of one candidate (a single-run scenario) and its two terms (tracking,
-    chattering: emasim.analysis.report.tuning_terms); DIVERGED_COST and NaN terms if it
-    diverges. Module level, so that a Dask worker process can run it."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
-            result = simulate_scenario(scenario)  # a co-simulation where one is set
-    except SimulationDiverged:
+def measure_trial(job: Job) -> Measured:
+    """A tuning store's measure of one trial (a single-set scenario): the run's metrics,
+    ``tuning_cost`` among them, and the cost's two terms (emasim.analysis.report.tuning_terms),
+    recording only what they read. A run that diverges raises, and its row says so. Module
+    level, so that a Dask worker process can run it."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # eq. 37 notices, irrelevant while searching
+        result = run_scenario(metrics_only(job.scenario), label=job.label)
+    terms = tuning_terms(result, job.scenario.experiment().max_current_A)
+    return Measured(result.metrics | dict(zip(TERMS.values(), terms, strict=True)), {})
+
+
+def trial_id(label: str, kind: str, number: int, params: dict) -> str:
+    """A trial's run id: its set, its kind and number, and a digest of the set's label and
+    its gains (a trial asked with other gains is another run)."""
+    key = json.dumps([label, params], sort_keys=True).encode()
+    return f"{slug(label)}-{kind}{number:06d}-{hashlib.sha256(key).hexdigest()[:8]}"
+
+
+def trial_value(row: dict, label: str) -> tuple[float, float, float]:
+    """A trial's cost and its two terms from its row in the store; DIVERGED_COST and NaN
+    terms for a run that diverged; EmasimError for one that failed."""
+    status = str(row["status"])
+    if status.startswith(DIVERGED):
         return DIVERGED_COST, math.nan, math.nan
-    tracking, chatter = tuning_terms(result, max_current)
-    return weighted_cost(tracking, chatter), tracking, chatter
-
-
-@contextlib.contextmanager
-def _heartbeats(storage, trials):
-    """Tell the storage, every HEARTBEAT_S, that ``trials`` are alive while they run (the
-    ask-and-tell loop has no heartbeat thread of Optuna's own)."""
-    stop = threading.Event()
-
-    def beat():
-        while True:
-            for trial in trials:
-                storage.record_heartbeat(trial._trial_id)
-            if stop.wait(HEARTBEAT_S):
-                return
-
-    thread = threading.Thread(target=beat, daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        stop.set()
-        thread.join()
+    if status != OK:
+        raise EmasimError(f"tune {label}: trial {row[RUN_ID]}: {status}")
+    number = lambda key: math.nan if row.get(key) is None else float(row[key])  # noqa: E731
+    return number(COST_METRIC), number(TERMS[TRACKING]), number(TERMS[CHATTER])
 
 
 def _completed_values(study) -> list[float]:
@@ -323,12 +267,6 @@ def neighbour_points(
     return points
 
 
-def _improved(study, check: dict) -> bool:
-    """True when the study's best is better than ``check``'s optimum by more than
-    CHECK_TOLERANCE: one of its points was, and is the new optimum."""
-    return study.best_value < (1.0 - CHECK_TOLERANCE) * check["cost"]
-
-
 def check_neighbourhood(
     study, controllers, count: int, seed: int, batch: int, evaluate_params
 ) -> dict:
@@ -339,31 +277,20 @@ def check_neighbourhood(
     "best_point"}.
 
     The points are trials of the study (user attribute NEIGHBOUR: check number x
-    CHECK_STRIDE + their index), so an interrupted check resumes; a search that went on after
-    a check (a larger budget), or whose check found a better neighbour, is checked again about
-    its new optimum (tune_variant: at most CHECK_ROUNDS checks)."""
-    searched = len(_completed_values(study))
+    CHECK_STRIDE + their index); each check is recorded in the study's user attribute
+    ``checks``. A check that found a better neighbour is followed by one about it
+    (tune_variant: at most CHECK_ROUNDS checks)."""
     checks = list(study.user_attrs.get("checks", []))
-    if not checks or checks[-1]["after"] != searched or _improved(study, checks[-1]):
-        checks.append(
-            {
-                "centre": dict(study.best_params),
-                "cost": study.best_value,
-                "after": searched,
-                "first": len(checks) * CHECK_STRIDE,
-            }
-        )
-        study.set_user_attr("checks", checks)
-    first = checks[-1].get("first", (len(checks) - 1) * CHECK_STRIDE)
-    centre, cost = checks[-1]["centre"], checks[-1]["cost"]
+    first = len(checks) * CHECK_STRIDE
+    centre, cost = dict(study.best_params), study.best_value
+    after = len(_completed_values(study))
+    check = {"centre": centre, "cost": cost, "after": after, "first": first}
+    study.set_user_attr("checks", [*checks, check])
     points = neighbour_points(centre, controllers, count, seed)
-    done = {t.user_attrs[NEIGHBOUR] - first for t in study.trials if NEIGHBOUR in t.user_attrs}
-    todo = [i for i in range(len(points)) if i not in done]
-    for start in range(0, len(todo), batch):
-        chunk = todo[start : start + batch]
-        for i, (value, tracking, chatter) in zip(
-            chunk, evaluate_params([points[i] for i in chunk]), strict=True
-        ):
+    for start in range(0, len(points), batch):
+        chunk = range(start, min(start + batch, len(points)))
+        costs = evaluate_params([points[i] for i in chunk], [first + i for i in chunk])
+        for i, (value, tracking, chatter) in zip(chunk, costs, strict=True):
             study.add_trial(
                 optuna.trial.create_trial(
                     params=points[i],
@@ -391,33 +318,26 @@ def tune_variant(
     label: str,
     controllers,
     budget: Budget | int,
-    storage,
+    store: Store,
     seed: int = 0,
     progress=None,
     client=None,
 ) -> Tuned:
     """Tune one controller set on ``scenario`` under ``budget`` (emasim.search_rules; a bare
-    int is that many trials: Budget.fixed). ``storage`` is an Optuna storage or
-    URL (:func:`open_storage`); ``progress(done, cap)`` is told the finished trials after each
-    batch (a resumed study's earlier trials included). The trials run through the study
-    facility's :func:`emasim.experiments.batch.map_runs`, as many at once as ``client`` has
-    worker threads (default: one at a time, in this process); the sampler is told their costs
-    in trial order, so a seed and a batch size give the same search whatever the schedule."""
+    int is that many trials: Budget.fixed), its trials run as jobs of ``store``
+    (:func:`tuning_store`, made for this ``seed`` and ``client``); ``progress(done, cap)`` is
+    told the finished trials after each batch. The trials run as many at once as ``client``
+    has worker threads (default: one at a time, in this process); the sampler is told their
+    costs in trial order, so a seed and a batch size give the same search whatever the
+    schedule, and the same search run again finds its finished trials in the store."""
     if isinstance(budget, int):
         budget = Budget.fixed(budget)
+    if store.record.get("batch") != trials_at_once(client):
+        raise ValueError("a tuning store is made for the client its trials run on")
     controllers = with_explicit_gains(controllers, scenario)
     base = search_space(controllers)
-    max_current = scenario.plant.motor.max_current_A
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    if isinstance(storage, str):
-        storage = open_storage(storage)
-    study = optuna.create_study(
-        study_name=f"{scenario.name}:{label}:{study_key(scenario)}",
-        storage=storage,
-        load_if_exists=True,
-        direction="minimize",
-        sampler=optuna.samplers.TPESampler(seed=seed),
-    )
+    study = optuna.create_study(direction="minimize", sampler=optuna.samplers.TPESampler(seed=seed))
     start = {}
     for key in base:
         loop, field = key.split(".", 1)
@@ -426,73 +346,75 @@ def tune_variant(
             start[key] = float(value)
             low, high = base[key]
             base[key] = (min(low, start[key]), max(high, start[key]))  # the gains given included
-    if not study.trials:
-        study.enqueue_trial(start, user_attrs={GIVEN: True})
-    attrs = study.user_attrs
-    space = {key: tuple(span) for key, span in attrs.get("space", base).items()}
-    rounds, round_start = attrs.get("widenings", 0), attrs.get("round_start", 0)
+    study.enqueue_trial(start, user_attrs={GIVEN: True})
+    space = dict(base)
+    rounds = round_start = 0
     batch = trials_at_once(client)
 
-    def evaluate_params(points: list[dict]) -> list[tuple[float, float, float]]:
-        candidates = [
-            (
+    def evaluate_params(points: list[dict], numbers: list[int], kind: str = "n"):
+        jobs = [
+            Job(
                 scenario.model_copy(
                     update={"controllers": _controllers_with(controllers, params), "compare": []}
                 ),
-                max_current,
+                label,
+                {
+                    RUN_ID: trial_id(label, kind, number, params),
+                    "set": label,
+                    "trial": f"{kind}{number}",
+                    **params,
+                },
             )
-            for params in points
+            for params, number in zip(points, numbers, strict=True)
         ]
-        if client is None:
-            return [trial_cost(*job) for job in candidates]
-        from .experiments.batch import map_runs
-
-        return map_runs(trial_cost, candidates, client)
+        store.add(jobs)
+        rows = store.run_pending(client, inline=client is None)
+        return [trial_value(rows[job.tags[RUN_ID]], label) for job in jobs]
 
     def evaluate(trials):
-        with _heartbeats(storage, trials):
-            return evaluate_params([trial.params for trial in trials])
+        return evaluate_params([t.params for t in trials], [t.number for t in trials], "t")
 
-    while True:
-        cap = budget.cap(len(space)) * (rounds + 1)
-        stopped = _search(study, space, cap, round_start, budget, batch, evaluate, progress)
-        best = study.best_params
-        sides = {key: bound_side(best[key], *space[key]) for key in space}
-        sides = {key: side for key, side in sides.items() if side is not None}
-        if not sides or rounds >= budget.widenings:
-            break
-        wider = dict(space)
-        for key, side in sides.items():
-            loop, field = key.split(".", 1)
-            wider[key] = widened(*space[key], side, hard_limits(getattr(controllers, loop), field))
-        if wider == space:  # every bound it sits on is a limit of the config itself
-            break
-        space, rounds, round_start = wider, rounds + 1, len(_completed_values(study))
-        study.set_user_attr("space", {key: list(span) for key, span in space.items()})
-        study.set_user_attr("widenings", rounds)
-        study.set_user_attr("round_start", round_start)
-    values = _completed_values(study)
-    if not values:
-        raise InputError(f"tune {label}: no trial completed; raise --trials")
-    check = None
-    for _ in range(CHECK_ROUNDS if budget.neighbours else 0):
-        check = check_neighbourhood(
-            study, controllers, budget.neighbours, seed, batch, evaluate_params
+    with store.opened():
+        while True:
+            cap = budget.cap(len(space)) * (rounds + 1)
+            stopped = _search(study, space, cap, round_start, budget, batch, evaluate, progress)
+            best = study.best_params
+            sides = {key: bound_side(best[key], *space[key]) for key in space}
+            sides = {key: side for key, side in sides.items() if side is not None}
+            if not sides or rounds >= budget.widenings:
+                break
+            wider = dict(space)
+            for key, side in sides.items():
+                loop, field = key.split(".", 1)
+                wider[key] = widened(
+                    *space[key], side, hard_limits(getattr(controllers, loop), field)
+                )
+            if wider == space:  # every bound it sits on is a limit of the config itself
+                break
+            space, rounds, round_start = wider, rounds + 1, len(_completed_values(study))
+            study.set_user_attr("widenings", rounds)
+        values = _completed_values(study)
+        if not values:
+            raise InputError(f"tune {label}: no trial completed; raise --trials")
+        check = None
+        for _ in range(CHECK_ROUNDS if budget.neighbours else 0):
+            check = check_neighbourhood(
+                study, controllers, budget.neighbours, seed, batch, evaluate_params
+            )
+            if check["best_cost_ratio"] >= 1.0 - CHECK_TOLERANCE:
+                break  # converged: no neighbour is better by more than the tolerance
+        given = [t.value for t in study.trials if t.value is not None and t.user_attrs.get(GIVEN)]
+        return Tuned(
+            _controllers_with(controllers, study.best_params),
+            study.best_value,
+            given[0] if given else None,
+            study,
+            len(values),
+            stopped,
+            {key: span for key, span in space.items() if span != base[key]},
+            sides,
+            check,
         )
-        if check["best_cost_ratio"] >= 1.0 - CHECK_TOLERANCE:
-            break  # converged: no neighbour is better by more than the tolerance
-    given = [t.value for t in study.trials if t.value is not None and t.user_attrs.get(GIVEN)]
-    return Tuned(
-        _controllers_with(controllers, study.best_params),
-        study.best_value,
-        given[0] if given else None,
-        study,
-        len(values),
-        stopped,
-        {key: span for key, span in space.items() if span != base[key]},
-        sides,
-        check,
-    )
 
 
 def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -> str:
@@ -515,12 +437,7 @@ def _search(study, space, cap, round_start, budget, batch, evaluate, progress) -
             and converged(values, patience, budget.tolerance)
         ):
             return "converged"
-        with warnings.catch_warnings():
-            # our own heartbeats (_heartbeats) stand in for those of Study.optimize
-            warnings.filterwarnings("ignore", message="Heartbeat of storage")
-            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-            optuna.storages.fail_stale_trials(study)  # a killed run's trial: failed, re-asked
-            trials = [study.ask(distributions) for _ in range(min(batch, cap - len(values)))]
+        trials = [study.ask(distributions) for _ in range(min(batch, cap - len(values)))]
         for trial, (cost, tracking, chatter) in zip(trials, evaluate(trials), strict=True):
             trial.set_user_attr(TRACKING, tracking)
             trial.set_user_attr(CHATTER, chatter)
@@ -537,15 +454,15 @@ def tune_scenario(
     raw: dict,
     scenario,
     budget: Budget | int,
-    storage: str,
+    store: Store,
     seed: int = 0,
     report=None,
     progress=None,
     client=None,
 ):
     """Tune every controller set of a scenario under the same rule (``budget``, see
-    :func:`tune_variant`); return the raw scenario table with the tuned gains written in, and
-    label -> :class:`Tuned`.
+    :func:`tune_variant`), their trials jobs of ``store`` (:func:`tuning_store`); return the
+    raw scenario table with the tuned gains written in, and label -> :class:`Tuned`.
 
     ``raw`` is the scenario file's table (as read, before validation); the tuned values are
     written as overrides of each controller set, and a ``tuning`` record says how, with each
@@ -563,7 +480,7 @@ def tune_scenario(
             label,
             variant.controllers,
             budget,
-            storage,
+            store,
             seed,
             None if progress is None else lambda d, n, lb=label: progress(lb, d, n),
             client,

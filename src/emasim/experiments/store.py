@@ -1,11 +1,12 @@
 """The job store: a list of runs (:class:`.batch.Job`) in one resumable folder, with one tidy
-table. Studies (robustness, wear, verdict maps) and the reproduction (the paper's comparisons,
-the clearance sweep, the ablation, the hybrid part by part) run their jobs on it. Its folder
-holds
+table. Studies (robustness, wear, verdict maps), the reproduction (the paper's comparisons,
+the clearance sweep, the ablation, the hybrid part by part), the acceptance battery and the
+tuning's trials (a job list that grows batch by batch: :meth:`Store.add`) run their jobs on
+it. Its folder holds
 
-* the record file (``study.json`` for a study, ``jobs.json`` for the reproduction): what the
-  store holds, the facility's description of its job list with the emasim version and a
-  SHA-256 of every run's fully resolved scenario (:func:`digest`);
+* the record file (``study.json`` for a study, ``tuning.json`` for a tuning, ``jobs.json``
+  for the others): what the store holds, the facility's description of its job list with the
+  emasim version and a SHA-256 of every run's fully resolved scenario (:func:`digest`);
 * ``runs/<run_id>/``: one folder per finished run, written by the worker the moment the run
   ends, atomically: ``scenario.toml`` (run it again with ``emasim run``), ``metrics.json``,
   ``meta.json`` (with ``job``: the run id, the label and the tags) and, for a job that keeps
@@ -110,13 +111,22 @@ class Store:
 
     def __post_init__(self):
         self.folder = Path(self.folder)
-        if not self.columns:
+        self.name = self.name or str(self.folder)
+        self._tag_columns = not self.columns  # the columns follow the jobs' tags
+        self._rows: dict[str, dict] = {}  # the finished rows read or run so far
+        jobs, self.jobs, self._order = list(self.jobs), [], {}
+        self.add(jobs)
+
+    def add(self, jobs: Sequence[Job]) -> None:
+        """Append ``jobs`` to the job list (one that grows as it runs: a tuning's trials)."""
+        for job in jobs:
+            if run_id_of(job) in self._order:
+                raise ValueError(f"two jobs of a store share a run id ({run_id_of(job)})")
+            self._order[run_id_of(job)] = len(self.jobs)
+            self.jobs.append(job)
+        if self._tag_columns:
             tags = dict.fromkeys(k for job in self.jobs for k in job.tags if k != RUN_ID)
             self.columns = (*ROW_KEYS, *tags)
-        self.name = self.name or str(self.folder)
-        self._order = {run_id_of(job): i for i, job in enumerate(self.jobs)}
-        if len(self._order) != len(self.jobs):
-            raise ValueError("two jobs of a store share a run id")
 
     def open(self) -> None:
         """Make the folder, or check that the one there holds this very record."""
@@ -157,13 +167,16 @@ class Store:
         return (self.folder / RUNS_FOLDER / run_id_of(job)).absolute()
 
     def finished(self) -> dict[str, dict]:
-        """run_id -> row of each of the jobs' finished run folders (not a failed one)."""
-        rows = finished_rows(self.folder)
-        return {
-            run_id: row
-            for run_id, row in rows.items()
-            if run_id in self._order and not is_failed(row)
-        }
+        """run_id -> row of each of the jobs' finished run folders (not a failed one); one
+        read or written already while the store is held (:meth:`opened`) is not read again."""
+        for job in self.jobs:
+            if run_id_of(job) not in self._rows:
+                self._keep(_finished_row(self.run_folder(job)))
+        return dict(self._rows)
+
+    def _keep(self, row: dict | None) -> None:
+        if row is not None and not is_failed(row):
+            self._rows[row[RUN_ID]] = row
 
     def run(
         self,
@@ -176,40 +189,66 @@ class Store:
         of every job. ``client``: a ``dask.distributed.Client`` to run on, else the one
         ``cluster()`` opens (a context manager; default: threads in this process).
         ``progress(done, total)`` is called as runs finish."""
+        with self.opened():
+            return self.run_pending(client, progress, trust_fmu, cluster)
+
+    @contextlib.contextmanager
+    def opened(self):
+        """Open the store and hold it (:meth:`holding`) for one or more :meth:`run_pending`
+        (each run folder is read and checked once while it is held); then list the workers'
+        log, whose writers are done, in its manifest."""
+        self.open()
+        with self.holding():
+            self._rows = {}
+            yield self
+            list_file(self.folder, LOG_FILE)
+
+    def run_pending(
+        self,
+        client=None,
+        progress: Callable[[int, int], None] | None = None,
+        trust_fmu: bool = False,
+        cluster: Callable | None = None,
+        inline: bool = False,
+    ) -> dict[str, dict]:
+        """:meth:`run` in a store held by :meth:`opened`; ``inline``: the jobs one after
+        another in this process, without Dask (a few short runs, where a cluster would cost
+        more than they do)."""
         from .. import numba_cache
         from .batch import dask_client, map_runs
 
-        self.open()
-        with self.holding():
-            rows = self.finished()
-            pending = [job for job in self.jobs if run_id_of(job) not in rows]
-            pending.sort(key=lambda job: -job.scenario.duration_s)  # the last to end is short
-            total = len(self.jobs)
+        rows = self.finished()
+        pending = [job for job in self.jobs if run_id_of(job) not in rows]
+        pending.sort(key=lambda job: -job.scenario.duration_s)  # the last to end is short
+        total = len(self.jobs)
+        if progress is not None:
+            progress(len(rows), total)
+        self.write_table(rows)  # (its first write: its cost is pyarrow's import too)
+        if not pending:
+            return rows
+        due = [time.monotonic() + TABLE_EVERY_S]  # when the table may be rewritten next
+
+        def on_done(_, row):
+            rows[row[RUN_ID]] = row
+            self._keep(row)
+            if time.monotonic() >= due[0]:
+                due[0] = self._timed_write(rows)
             if progress is not None:
                 progress(len(rows), total)
-            self.write_table(rows)  # (its first write: its cost is pyarrow's import too)
-            due = [time.monotonic() + TABLE_EVERY_S]  # when the table may be rewritten next
 
-            def on_done(_, row):
-                rows[row[RUN_ID]] = row
-                if time.monotonic() >= due[0]:
-                    due[0] = self._timed_write(rows)
-                if progress is not None:
-                    progress(len(rows), total)
-
-            if pending:
-                calls = [(job, self.run_folder(job), trust_fmu, self.measure) for job in pending]
-                opened = cluster() if cluster else dask_client(processes=False)
-                with contextlib.nullcontext(client) if client else opened as used:
-                    try:  # one run first only to compile: with a warm cache, all at once
-                        cold = numba_cache.is_cold()
-                        map_runs(
-                            run_and_write, calls, used, on_done, first_alone=cold, grouped=True
-                        )
-                    finally:
-                        self.write_table(rows)  # every run that finished
-            # what the workers of a cluster it started wrote there, now closed: emasim's
-            list_file(self.folder, LOG_FILE)
+        calls = [(job, self.run_folder(job), trust_fmu, self.measure) for job in pending]
+        try:
+            if inline:
+                for i, call in enumerate(calls):
+                    on_done(i, run_and_write(*call))
+                return rows
+            opened = cluster() if cluster else dask_client(processes=False)
+            with contextlib.nullcontext(client) if client else opened as used:
+                # one run first only to compile: with a warm cache, all at once
+                cold = numba_cache.is_cold()
+                map_runs(run_and_write, calls, used, on_done, first_alone=cold, grouped=True)
+        finally:
+            self.write_table(rows)  # every run that finished
         return rows
 
     def require_ok(self, rows: dict[str, dict]) -> None:
@@ -279,18 +318,16 @@ class Store:
 
 def keyed(root: Path, jobs: list[Job], record: dict, **options) -> Store:
     """The store of ``jobs`` under ``root``, named ``jobs-<key>`` by what it holds: ``record``
-    with the emasim version, the digest of emasim's source and of every job's scenario. The
+    with the emasim version, the digest of emasim's source and of every job's scenario (none
+    for a job list that grows as it runs, a tuning's: its record says what it holds). The
     same job list finds its store again (and resumes it); a changed scenario or source makes
     one of its own, so no result of other code is ever taken for this code's."""
     from ..version import __version__
     from .runs import source_digest
 
-    record = record | {
-        "runs": len(jobs),
-        "emasim_version": __version__,
-        "emasim_source_sha256": source_digest(),
-        "scenarios_sha256": digest(jobs),
-    }
+    record = record | {"emasim_version": __version__, "emasim_source_sha256": source_digest()}
+    if jobs:
+        record |= {"runs": len(jobs), "scenarios_sha256": digest(jobs)}
     key = hashlib.sha256(json_text(record).encode()).hexdigest()[:12]
     return Store(Path(root) / f"jobs-{key}", jobs, record, **options)
 
