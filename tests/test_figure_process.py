@@ -80,19 +80,31 @@ def test_without_plots_there_is_no_figure_process():
         assert figures is None
 
 
-def test_the_figure_process_yields_every_core_to_the_simulation(tmp_path):
-    """It runs at the lowest CPU priority (FIGURE_NICENESS above this process's), so that
-    where every core simulates it takes only the cycles they leave. Read once it has answered
-    a figure: by then it has set its priority."""
+def priorities():
+    """A figure whose drawing reports (raises) the figure process's priorities: its importing
+    thread's and its own (the drawing thread's)."""
+    from emasim.analysis import figure_process as fp
+
+    raise ValueError(f"{fp._import_niceness} {os.getpriority(os.PRIO_PROCESS, 0)}")
+
+
+def test_the_figure_process_imports_yielding_every_core_and_draws_at_the_callers_priority(
+    tmp_path,
+):
+    """Its import (while the first process simulates) runs at the lowest CPU priority
+    (FIGURE_NICENESS above this process's), so that where every core simulates it takes only
+    the cycles they leave; it draws (while the first process waits for it) at this process's
+    priority, so that other work on the machine does not hold the figures back."""
     from emasim.analysis import figure_process as fp
 
     writer = fp.FigureProcess()
     try:
-        writer.save(broken, tmp_path / "x.png")
-        with pytest.raises(ValueError, match="no such column"):
+        writer.save(priorities, tmp_path / "x.png")
+        with pytest.raises(ValueError) as seen:
             writer.wait()
-        niceness = os.getpriority(os.PRIO_PROCESS, writer._process.pid)
-        assert niceness == min(19, os.nice(0) + fp.FIGURE_NICENESS)
+        own = os.nice(0)
+        assert str(seen.value) == f"[{min(19, own + fp.FIGURE_NICENESS)}] {own}"
+        assert os.getpriority(os.PRIO_PROCESS, writer._process.pid) == own
     finally:
         writer.close()
 

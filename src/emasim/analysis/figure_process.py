@@ -4,14 +4,17 @@ Importing matplotlib and drawing a run's figure take about half a second of a si
 ``emasim run`` of one second, and neither depends on the simulation until the very end. So
 ``emasim run`` forks a *figure process* as soon as the scenario is valid, before it imports
 the compiled core: it imports ``emasim.analysis.plots`` (matplotlib) on the second core while
-the first loads the compiled core and simulates, at the lowest CPU priority
-(``os.nice(FIGURE_NICENESS)``): where every core simulates (a comparison's sets on two
-threads), it takes only the cycles they leave, so it never slows the simulation it waits for.
-A result folder's writer then hands each figure to it (:meth:`save`: the function that draws
-it, pickled, and the path of its PNG) and goes on writing traces and metrics, or
-simulating, while it is drawn; before the folder is published, :meth:`wait` collects every
-figure, and re-raises in the first process whatever the drawing raised, so a failed figure
-fails the write as before.
+the first loads the compiled core and simulates. The import runs on a thread at the lowest
+CPU priority (``os.nice(FIGURE_NICENESS)``, which Linux applies to the calling thread): where
+every core simulates (a comparison's sets on two threads), it takes only the cycles they leave,
+so it never slows the simulation it waits for. A result folder's writer then hands each figure
+to it (:meth:`save`: the function that draws it, pickled, and the path of its PNG) and goes on
+writing traces and metrics while it is drawn; before the folder is published, :meth:`wait`
+collects every figure, and re-raises in the first process whatever the drawing raised, so a
+failed figure fails the write as before. The figures are received and drawn by the process's
+main thread, at the first process's priority: every caller hands them over once it has
+simulated, so the first process is then waiting for them, and at the lowest priority any other
+work on the machine (a build, a test suite) would hold them back.
 
 The figure process writes its PNG through ``emasim.output.new_file`` into the folder being
 built, so the file is listed in that build's journal like every other. It ends when told
@@ -23,6 +26,7 @@ Where ``fork`` is not available (or not safe: macOS, Windows), :func:`figure_wri
 
 import contextlib
 import ctypes
+import importlib
 import multiprocessing
 import os
 import pickle
@@ -145,22 +149,39 @@ def _die_with(parent: int) -> None:
         os._exit(0)
 
 
+_import_niceness: list[int] = []  # the importing thread's niceness, once it has set it
+
+
+def _import_plots() -> None:
+    """The importing thread: lower this thread's priority (module docstring), then import the
+    plotting module (matplotlib) and the module of the results that the figures draw (what
+    unpickling a job imports: pyarrow, about 0.03 s). A failure is left for the main thread's
+    own import to raise."""
+    _import_niceness.append(os.nice(FIGURE_NICENESS))
+    for name in (".plots", "..sim.result"):  # matplotlib first: every figure needs it
+        with contextlib.suppress(Exception):
+            importlib.import_module(name, __package__)
+
+
 def _serve(jobs, jobs_writer, answers, answers_reader, parent: int) -> None:
-    """The figure process: end with ``parent``, lower its priority, close its ends of the
-    pipes, import the plotting module, then draw each job until the jobs pipe ends (the parent
-    closed it)."""
+    """The figure process: end with ``parent``, close its ends of the pipes, import the
+    plotting module on a thread of the lowest priority, then draw each job, at this process's
+    own priority, until the jobs pipe ends (the parent closed it)."""
     _die_with(parent)
-    os.nice(FIGURE_NICENESS)
     jobs_writer.close()
     answers_reader.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C is the first process's to handle
-    from .plots import save_figure
-
+    importer = threading.Thread(target=_import_plots, daemon=True)
+    importer.start()
+    save_figure = None
     while True:
         try:
             job = jobs.recv_bytes()
         except EOFError:
             return
+        if save_figure is None:
+            importer.join()
+            from .plots import save_figure
         try:
             draw, path = pickle.loads(job)
             save_figure(draw(), Path(path))
