@@ -520,24 +520,52 @@ def test_a_file_put_in_while_building_is_published_as_foreign(tmp_path):
     assert (target / "mine.txt").read_text() == "keep"
 
 
-def test_a_build_killed_between_link_and_listing_is_still_cleaned(tmp_path):
-    """new_file lists its part file, writes it, links it to the final name, then lists that
-    name. Killed before the last line, the final name is unlisted but the same inode as the
-    listed part: the clean-up removes both, and a foreign file still keeps the folder."""
+def test_a_journalled_name_is_emasims_only_while_it_keeps_its_inode(tmp_path):
+    """new_file journals each file's inode with its name: in a killed build, a file a user
+    saved over one of emasim's (a new inode at that name) or linked to it (the inode under a
+    name not journalled) is foreign and keeps the folder; the journalled files go."""
     build = tmp_path / f".run.tmp-{dead_pid()}-abcdef12"
     build.mkdir()
     write_marker(build, "run")
-    part = build / ".result.parquet.part-0123abcd"
-    (build / JOURNAL).write_text(f"{part.name}\n")
-    part.write_bytes(b"traces")
-    os.link(part, build / "result.parquet")
-    (build / "notes.txt").write_text("someone's")
-    assert foreign_files(build) == ["notes.txt"]  # the linked name is known by its inode
+    for name in ("a.txt", "b.txt", "c.txt"):
+        write_new(build / name, "ours")
+    (build / "draft").write_text("my own conclusions")
+    os.replace(build / "draft", build / "b.txt")  # an editor's save: a new file over it
+    os.link(build / "c.txt", build / "kept.txt")
+    assert foreign_files(build) == ["b.txt", "kept.txt"]
     assert clean_leftovers(tmp_path) == []
-    assert sorted(p.name for p in build.iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in build.iterdir()) == ["b.txt", "kept.txt"]
+    assert (build / "b.txt").read_text() == "my own conclusions"
 
 
-def test_new_file_leaves_no_part_file_and_lists_what_it_wrote(tmp_path):
+def test_a_build_killed_between_opening_and_journalling_keeps_its_folder(tmp_path):
+    """Killed after new_file opened a name but before its journal line, a build holds a file
+    nothing proves emasim's: it stays, and so does the folder (the safe way round)."""
+    build = tmp_path / f".run.tmp-{dead_pid()}-abcdef12"
+    build.mkdir()
+    write_marker(build, "run")
+    write_new(build / "metrics.json", "{}")
+    (build / "result.parquet").write_bytes(b"")  # opened, never journalled
+    assert foreign_files(build) == ["result.parquet"]
+    assert clean_leftovers(tmp_path) == []
+    assert sorted(p.name for p in build.iterdir()) == ["result.parquet"]
+
+
+def test_a_file_whose_journal_line_cannot_be_written_is_removed(tmp_path):
+    """new_file journals a file after opening it: where the line cannot be written (a full
+    disk; here the journal's name is taken by a folder), the file just made goes at once, so
+    the failed write leaves nothing behind."""
+
+    def content(tmp):
+        (tmp / JOURNAL).mkdir()
+        write_new(tmp / "a.txt", "x")
+
+    with pytest.raises(OutputError, match="cannot write"):
+        write_folder(tmp_path / "run", content)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_new_file_lists_what_it_wrote_and_leaves_nothing_else(tmp_path):
     def content(tmp):
         write_new(tmp / "a.txt", "x")
         with new_file(tmp / "b.bin") as handle:

@@ -3,19 +3,20 @@
 * A result is a real folder holding emasim's marker (:mod:`emasim.manifest`), whose manifest
   lists each file emasim wrote there with its size and modification time. A new path or an
   empty folder is written; an emasim result is replaced only with ``force``, and only while it
-  holds its manifest's files alone, unchanged; anything else (a user's folder, file or link) is
-  refused. A file follows the same rules, ``is_ours`` telling whether one there is emasim's.
-* A write builds in ``.<name>.tmp-<pid>-<token>`` beside the target, marked from the start, its
-  journal listing each file before it exists (:func:`new_file`); it writes the manifest and,
-  under the parent's lock, publishes by a rename that replaces nothing (:func:`_rename`).
-* ``force`` moves the old result aside (``.<name>.old-<pid>-<token>``), checks it against its
-  manifest (anything else there: put back, refused), renames the new one in and deletes the old
-  one's own files. A file is hard-linked into place (replacing nothing), or with ``force``
-  checked again under the lock and replaced: a file saved there between the two is the race left.
-* A kill leaves the target complete or absent. Its debris, a real folder named as above whose
-  process is gone, holding the marker or empty, loses at the next write there the files its
-  journal or manifest lists, its marker, journal and empty folders: nothing else.
-* No link is ever followed; modes follow the umask. For users: docs/guide.md, "Where results go".
+  holds its manifest's files alone, unchanged; a user's folder, file or link never. A file
+  follows the same rules, ``is_ours`` telling whether one there is emasim's.
+* A write builds in ``.<name>.tmp-<pid>-<token>`` beside the target (mkdir: this process's),
+  marked, writes the manifest, then under the parent's lock publishes by a rename that replaces
+  nothing. ``force`` moves the old result aside (``.<name>.old-<pid>-<token>``), checks it
+  (anything foreign: put back, refused), renames the new one in, deletes the old one's own
+  files. A file is hard-linked into place, or with ``force`` checked again under the lock and
+  replaced: a file saved there between the two is the race left.
+* Others may put files into a build, so :func:`new_file` opens a new name only (O_EXCL), then
+  journals ``dev:ino name``: a name is emasim's while it keeps that inode. An error between the
+  two removes the file; a kill leaves it unlisted, which keeps the debris (the safe way round:
+  a name journalled before its open may be a user's). Debris, such a folder whose process is
+  gone, marked or empty, loses at the next write there only its proven files, marker, journal
+  and empty folders. No link is ever followed; modes follow the umask. Users: docs/guide.md.
 """
 
 import contextlib
@@ -24,8 +25,6 @@ import errno
 import fcntl
 import os
 import re
-import secrets
-import stat
 from collections.abc import Callable
 from pathlib import Path
 
@@ -37,11 +36,12 @@ JOURNAL = ".emasim-journal"
 CLI_HINTS = ("add --force to replace it", "or leave --out out for a fresh folder")
 _DEBRIS = re.compile(r"^\..+\.(?P<kind>tmp|old)-(?P<pid>\d+)-[0-9a-f]{8}$")
 _TAKEN = "another process wrote it meanwhile; nothing was replaced"
+_LINE = "{0.st_dev}:{0.st_ino} {1}"  # a journal line: a file's inode, its name
 _RENAMEAT2 = getattr(ctypes.CDLL(None, use_errno=True), "renameat2", None)  # glibc >= 2.28
 
 
 def _beside(path: Path, kind: str) -> Path:
-    return path.with_name(f".{path.name}.{kind}-{os.getpid()}-{secrets.token_hex(4)}")
+    return path.with_name(f".{path.name}.{kind}-{os.getpid()}-{os.urandom(4).hex()}")
 
 
 def _real_folder(path: Path) -> bool:
@@ -55,19 +55,19 @@ def is_emasim_folder(path: Path) -> bool:
 
 def _owned(folder: Path) -> dict[str, bool]:
     """Each file or link under ``folder`` -> whether it is emasim's: listed in the manifest with
-    its stamp unchanged (a name without a stamp proves nothing), else listed in the journal or
-    the same inode as a file listed there (new_file killed between its link and its line)."""
-    stamps, found, journal = manifest_stamps(folder), {}, set()
-    with contextlib.suppress(OSError, ValueError):
-        journal = set((folder / JOURNAL).read_text().splitlines())
+    its stamp unchanged (a name without a stamp proves nothing), else journalled with its inode."""
+    stamps, journal, found = manifest_stamps(folder), set(), {}
+    with contextlib.suppress(OSError):
+        journal = set(map(os.fsdecode, (folder / JOURNAL).read_bytes().split(b"\n")))
     for root, dirs, files in os.walk(folder):  # never into a link
         for name in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
             with contextlib.suppress(OSError):
                 found[Path(root, name).relative_to(folder).as_posix()] = os.lstat(Path(root, name))
-    inode = {n: (st.st_dev, st.st_ino) for n, st in found.items() if not stat.S_ISLNK(st.st_mode)}
-    parts = {inode[name] for name in journal if name in inode}
-    own = {n: n in journal or inode.get(n) in parts for n in found.keys() - {MARKER, JOURNAL}}
-    return own | {n: stamps[n] == stamp(found[n]) for n in own.keys() & stamps.keys()}
+    return {
+        name: stamps[name] == stamp(st) if name in stamps else _LINE.format(st, name) in journal
+        for name, st in found.items()
+        if name not in (MARKER, JOURNAL)
+    }
 
 
 def foreign_files(folder: Path) -> list[str]:
@@ -91,25 +91,22 @@ def remove_own(folder: Path) -> bool:
 
 @contextlib.contextmanager
 def new_file(path: Path):
-    """Yield a handle writing bytes to a new file; never opens an existing name. In a build, a
-    hidden part is journalled, written, linked to ``path`` (only if free), then that journalled."""
+    """Yield a handle writing bytes to a new file: never an existing name, nor through a link.
+    In a build, its inode and name then go into the journal (one O_APPEND write), else it goes."""
     path = Path(path).absolute()
-    builds = [p for p in path.parents if (m := _DEBRIS.match(p.name)) and m["kind"] == "tmp"]
-    if not builds:
-        with open(path, "xb") as handle:
-            yield handle
-        return
-    part = path.with_name(f".{path.name}.part-{secrets.token_hex(4)}")
-    with open(builds[0] / JOURNAL, "ab", buffering=0) as journal:  # one O_APPEND write a line
-        journal.write(f"{part.relative_to(builds[0]).as_posix()}\n".encode())
-        handle = open(part, "xb")  # before the try: a name that exists is not removed
+    builds = (p for p in path.parents if (m := _DEBRIS.match(p.name)) and m["kind"] == "tmp")
+    with open(path, "xb") as handle:
+        st = os.fstat(handle.fileno())
         try:
-            with handle:
-                yield handle
-            os.link(part, path)
-            journal.write(f"{path.relative_to(builds[0]).as_posix()}\n".encode())
-        finally:
-            part.unlink()
+            if build := next(builds, None):
+                line = _LINE.format(st, path.relative_to(build).as_posix())
+                with open(build / JOURNAL, "ab", buffering=0) as journal:
+                    journal.write(os.fsencode(f"{line}\n"))
+        except BaseException:  # a full disk, a Ctrl-C: the file, never listed, goes
+            if os.path.samestat(os.lstat(path), st):
+                os.unlink(path)
+            raise
+        yield handle
 
 
 def write_new(path: Path, content: str | bytes) -> None:
@@ -127,39 +124,36 @@ def check_parents(path: Path, what: str) -> None:
         raise OutputError(f"{what} {path}: cannot write in {parent}")
 
 
-def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None):
+def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None,
+                 at: Path | None = None) -> None:  # fmt: skip
     """Raise OutputError unless a result folder (or, given ``is_ours``, a file) may be written
-    at ``path``; ``hints`` say how to replace it, and how to get a fresh one."""
-    path, folder = Path(path), is_ours is None
+    at ``path``, its old result now ``at`` (moved aside) if given; ``hints`` say how to replace
+    it, and how to get a fresh one."""
+    path, folder, at = Path(path), is_ours is None, Path(at or path)
     check_parents(path, what)
-    if not os.path.lexists(path) or folder and _real_folder(path) and not any(path.iterdir()):
+    if not os.path.lexists(at) or folder and _real_folder(at) and not any(at.iterdir()):
         return
     never = "emasim never replaces it (choose another path)"
-    if folder and not is_emasim_folder(path):
-        kind = "a link" if path.is_symlink() else "a folder" if path.is_dir() else "a file"
+    if folder and not is_emasim_folder(at):
+        kind = "a link" if at.is_symlink() else "a folder" if at.is_dir() else "a file"
         raise OutputError(f"{what} {path}: is {kind} that emasim did not write; {never}")
-    if not folder and not (path.is_file() and not path.is_symlink() and is_ours(path)):
+    if not folder and not (at.is_file() and not at.is_symlink() and is_ours(at)):
         raise OutputError(f"{what} {path}: exists and emasim did not write it; {never}")
     if not force:
         told = "holds an emasim result already" if folder else "exists (written by emasim)"
         raise OutputError(f"{what} {path}: {told}; {', '.join(hints)}")
-    _refuse_foreign(path, path, what)  # a file holds no files
+    if foreign := foreign_files(at):  # a file holds none
+        more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
+        raise OutputError(
+            f"{what} {path}: holds files emasim did not write, or changed since ({foreign[0]}"
+            f"{more}); move them out first, or choose another path"
+        )
 
 
 def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0]) -> None:  # fmt: skip
     """Raise OutputError unless a file may be written at ``path``."""
     check_folder(path, force, what, (replace_hint,), is_ours)
-
-
-def _refuse_foreign(folder: Path, path: Path, what: str) -> None:
-    """Refuse to replace ``path``, an emasim result (now at ``folder``) holding foreign files."""
-    if foreign := foreign_files(folder):
-        more = f" and {len(foreign) - 1} more" if len(foreign) > 1 else ""
-        raise OutputError(
-            f"{what} {path}: holds files emasim did not write, or changed since ({foreign[0]}"
-            f"{more}); move them out first, or choose another path"
-        )
 
 
 def clean_leftovers(folder: Path) -> list[Path]:
@@ -184,8 +178,7 @@ def locked(folder: Path):
     """Hold an exclusive lock on ``folder`` (flock on the folder itself: no lock file)."""
     fd = os.open(folder, os.O_RDONLY)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        yield
+        yield fcntl.flock(fd, fcntl.LOCK_EX)
     finally:
         os.close(fd)
 
@@ -193,15 +186,12 @@ def locked(folder: Path):
 def _rename(src: Path, dst: Path) -> bool:
     """Rename the folder ``src`` to ``dst``; False, nothing replaced, where ``dst`` exists.
     Without renameat2's RENAME_NOREPLACE, rename(2) can replace only an empty folder."""
-    if _RENAMEAT2 is not None:  # -100: AT_FDCWD, 1: RENAME_NOREPLACE
-        if _RENAMEAT2(-100, os.fsencode(src), -100, os.fsencode(dst), 1) == 0:
-            return True
-        if (code := ctypes.get_errno()) not in (errno.EINVAL, errno.ENOSYS):  # else: no flag
-            if code == errno.EEXIST:
-                return False
-            raise OSError(code, os.strerror(code), os.fspath(src))
-    try:
-        os.rename(src, dst)
+    try:  # -100: AT_FDCWD, 1: RENAME_NOREPLACE
+        if _RENAMEAT2 is None or _RENAMEAT2(-100, os.fsencode(src), -100, os.fsencode(dst), 1):
+            code = ctypes.get_errno() if _RENAMEAT2 else errno.ENOSYS
+            if code not in (errno.EINVAL, errno.ENOSYS):  # else: no such flag here
+                raise OSError(code, os.strerror(code), os.fspath(src))
+            os.rename(src, dst)
     except OSError:
         if not os.path.lexists(dst):
             raise
@@ -210,9 +200,10 @@ def _rename(src: Path, dst: Path) -> bool:
 
 
 @contextlib.contextmanager
-def _build(path: Path, kind: str, what: str):
-    """Yield a fresh, marked build folder beside ``path`` (the debris there removed first),
-    then remove what is left of it; an OSError (a full disk) becomes one line."""
+def _build(path: Path, kind: str, what: str, write: Callable[[Path], None]):
+    """Build with ``write`` in a fresh, marked folder beside ``path`` (the debris there removed
+    first), give it its manifest, yield it under the parent's lock, then remove what is left of
+    it; an OSError (a full disk) becomes one line."""
     tmp = _beside(path, "tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -220,7 +211,11 @@ def _build(path: Path, kind: str, what: str):
         os.mkdir(tmp)  # fails if the name exists: what is removed below is this process's
         try:
             write_marker(tmp, kind)
-            yield tmp
+            write(tmp)
+            write_marker(tmp, kind, files=sorted(name for name, own in _owned(tmp).items() if own))
+            (tmp / JOURNAL).unlink(missing_ok=True)
+            with locked(path.parent):
+                yield tmp
         finally:
             remove_own(tmp)
     except OSError as err:
@@ -234,14 +229,10 @@ def write_folder(path: Path, write: Callable[[Path], None], *, force: bool = Fal
     ``kind`` goes into the marker. ``unique``: a name taken meanwhile moves on to ``-2``..."""
     path = Path(path)
     check_folder(path, force, what, hints)
-    with _build(path, kind, what) as tmp:
-        write(tmp)
-        write_marker(tmp, kind, files=sorted(name for name, own in _owned(tmp).items() if own))
-        (tmp / JOURNAL).unlink(missing_ok=True)
-        with locked(path.parent):
-            for candidate in numbered(path.parent, path.name) if unique else [path]:
-                if _publish(tmp, candidate, force, what):
-                    return candidate
+    with _build(path, kind, what, write) as tmp:
+        for candidate in numbered(path.parent, path.name) if unique else [path]:
+            if _publish(tmp, candidate, force, what):
+                return candidate
     raise OutputError(f"{what} {path}: {'no free folder name' if unique else _TAKEN}")
 
 
@@ -254,7 +245,7 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
         return _rename(tmp, path)
     _rename(path, old := _beside(path, "old"))
     try:
-        _refuse_foreign(old, path, what)
+        check_folder(path, force, what, at=old)
     except BaseException:
         with contextlib.suppress(OSError):
             _rename(old, path)  # put back
@@ -267,25 +258,23 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
 def write_file(path: Path, content: bytes | str | Path, *, force: bool = False,
                is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0], listed: bool = False) -> Path:  # fmt: skip
-    """Write ``content`` (bytes, text, or a file's path to copy) to the file ``path``, built in
-    a build folder, then hard-linked into place or, with ``force``, checked again and replaced;
-    ``listed``: into an emasim result, whose manifest then lists it (manifest.list_file)."""
+    """Write ``content`` (bytes, text, or a file's path to copy) to the file ``path`` as the
+    module docstring says; ``listed``: into an emasim result, whose manifest then lists it."""
     path = Path(path)
     check_file(path, force, is_ours, what, replace_hint)
-    with _build(path, "file", what) as tmp:
+
+    def write(tmp: Path) -> None:
         write_new(tmp / path.name, content.read_bytes() if isinstance(content, Path) else content)
-        with locked(path.parent):
-            placed = True
+
+    with _build(path, "file", what, write) as tmp:
+        try:
             if force and os.path.lexists(path):
                 check_file(path, force, is_ours, what, replace_hint)  # again, under the lock
                 os.replace(tmp / path.name, path)
             else:
-                try:
-                    os.link(tmp / path.name, path)  # replaces nothing
-                except FileExistsError:
-                    placed = False
-            if placed and listed:
-                list_file(path.parent, path.name)
-    if not placed:
-        raise OutputError(f"{what} {path}: {_TAKEN}")
+                os.link(tmp / path.name, path)  # replaces nothing
+        except FileExistsError:
+            raise OutputError(f"{what} {path}: {_TAKEN}") from None
+        if listed:
+            list_file(path.parent, path.name)
     return path
