@@ -75,7 +75,9 @@ def _spare_scipy_linalg() -> None:
         return
     from numba.np import linalg
 
-    numbas_check = linalg.ensure_blas
+    numbas_check = getattr(linalg, "ensure_blas", None)
+    if numbas_check is None:  # a numba that checks otherwise: its own way, untouched
+        return
 
     def first_check() -> None:
         linalg.ensure_blas = numbas_check
