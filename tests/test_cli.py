@@ -272,3 +272,26 @@ def test_an_unexpected_failure_in_a_run_is_one_line(tmp_path):
     assert done.returncode == 1, printed
     assert "internal error: ValueError: a metric broke" in printed
     assert "Traceback" not in printed and "Compute Failed" not in printed
+
+
+def test_run_leaves_the_cycle_collector_as_it_found_it(tmp_path, monkeypatch):
+    """`run` turns Python's cycle collector off while it runs (a bounded job) and on again
+    after, as it was: a program or a test that runs it in its own process keeps its collector,
+    and a run that fails does too."""
+    import gc
+
+    from emasim.experiments import batch
+
+    seen = []
+    assert gc.isenabled()
+    args = ["run", "speed-step", "-c", "speed=pi", "--set", "duration_s=0.01", "--no-plot"]
+
+    def watched(*a, **k):
+        seen.append(gc.isenabled())
+        return run_scenario(*a, **k)
+
+    monkeypatch.setattr(batch, "run_scenario", watched)
+    assert invoke(*args, "--out", str(tmp_path / "a")).exit_code == 0
+    assert seen == [False] and gc.isenabled()
+    assert invoke(*args, "--set", "duration_s=-1").exit_code == 2
+    assert gc.isenabled()
