@@ -574,3 +574,27 @@ def test_new_file_lists_what_it_wrote_and_leaves_nothing_else(tmp_path):
     target = write_folder(tmp_path / "run", content)
     assert sorted(p.name for p in target.iterdir()) == [MARKER, "a.txt", "b.bin"]
     assert json.loads((target / MARKER).read_text())["files"] == ["a.txt", "b.bin"]
+
+
+def test_a_file_listed_into_a_result_rewrites_its_marker_whole_or_not_at_all(tmp_path, monkeypatch):
+    """write_file(listed=True) adds the file to the result's manifest, every other entry kept;
+    the marker is a new file renamed over the old one, so a failure (a kill) at the rename
+    leaves the old marker whole, and the result still emasim's."""
+    folder = write_folder(tmp_path / "r", fill)
+    before = json.loads((folder / MARKER).read_text())
+    write_file(folder / "t.bin", b"1", is_ours=lambda p: True, what="t", listed=True)
+    after = json.loads((folder / MARKER).read_text())
+    assert (
+        after["files"] == ["a.txt", "t.bin"]
+        and after["stamps"]["a.txt"] == before["stamps"]["a.txt"]
+    )
+    assert sorted(os.listdir(folder)) == sorted([MARKER, "a.txt", "t.bin"])
+
+    def killed(*args):
+        raise OSError("killed")
+
+    monkeypatch.setattr(os, "replace", killed)
+    with pytest.raises(OutputError, match="cannot write"):
+        write_file(folder / "u.bin", b"2", is_ours=lambda p: True, what="t", listed=True)
+    assert json.loads((folder / MARKER).read_text()) == after
+    assert is_emasim_folder(folder) and "u.bin" in foreign_files(folder)

@@ -43,13 +43,18 @@ def write_marker(folder: Path, kind: str, files: list[str] | None = None) -> Non
 
 def list_file(folder: Path, name: str) -> None:
     """Add ``name``, a file emasim wrote into the published result ``folder``, to its manifest
-    with its stamp and SHA-256 as they are now; every other entry stays as it was."""
+    with its stamp and SHA-256 as they are now; every other entry stays as it was. The marker
+    is rewritten atomically (a new file renamed over it)."""
     folder = Path(folder)
     record = json.loads((folder / MARKER).read_text())
     record["files"] = sorted({*record["files"], name})
     record.setdefault("stamps", {})[name] = stamp(os.lstat(folder / name))
     record.setdefault("sha256", {})[name] = sha256_of(folder / name)
-    (folder / MARKER).write_text(json_text(record))
+    new = folder / f"{MARKER}.new-{os.getpid()}-{os.urandom(4).hex()}"  # never a name there
+    with open(os.open(new, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), "w") as handle:
+        handle.write(json_text(record))
+    os.replace(new, folder / MARKER)  # a kill leaves the old marker whole (and the new file,
+    # which no manifest lists: the result is then kept, never pruned)
 
 
 def manifest_stamps(folder: Path) -> dict[str, list | None]:
