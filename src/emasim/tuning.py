@@ -229,8 +229,9 @@ def trial_value(row: dict, label: str) -> tuple[float, float, float]:
         return DIVERGED_COST, math.nan, math.nan
     if status != OK:
         raise EmasimError(f"tune {label}: trial {row[RUN_ID]}: {status}")
-    number = lambda key: math.nan if row.get(key) is None else float(row[key])  # noqa: E731
-    return number(COST_METRIC), number(TERMS[TRACKING]), number(TERMS[CHATTER])
+    values = [row.get(key) for key in (COST_METRIC, TERMS[TRACKING], TERMS[CHATTER])]
+    cost, tracking, chatter = (math.nan if v is None else float(v) for v in values)  # JSON null
+    return cost, tracking, chatter
 
 
 def _completed_values(study) -> list[float]:
