@@ -66,7 +66,6 @@ def _platform() -> dict:
 
 
 @functools.cache
-@functools.cache
 def source_digest() -> str:
     """The digest of the package's source (emasim.numba_cache.source_hash) when this process
     first asks: it names the code that runs, for any install, with or without git."""
