@@ -114,6 +114,7 @@ class Store:
         self.name = self.name or str(self.folder)
         self._tag_columns = not self.columns  # the columns follow the jobs' tags
         self._rows: dict[str, dict] = {}  # the finished rows read or run so far
+        self._table_current = False  # metrics.parquet holds every finished row, as written
         jobs, self.jobs, self._order = list(self.jobs), [], {}
         self.add(jobs)
 
@@ -177,6 +178,7 @@ class Store:
     def _keep(self, row: dict | None) -> None:
         if row is not None and not is_failed(row):
             self._rows[row[RUN_ID]] = row
+            self._table_current = False
 
     def run(
         self,
@@ -199,7 +201,7 @@ class Store:
         log, whose writers are done, in its manifest."""
         self.open()
         with self.holding():
-            self._rows = {}
+            self._rows, self._table_current = {}, False
             yield self
             list_file(self.folder, LOG_FILE)
 
@@ -223,7 +225,8 @@ class Store:
         total = len(self.jobs)
         if progress is not None:
             progress(len(rows), total)
-        self.write_table(rows)  # (its first write: its cost is pyarrow's import too)
+        if not self._table_current:  # not again at each batch of a growing job list
+            self.write_table(rows)  # (its first write: its cost is pyarrow's import too)
         if not pending:
             return rows
         due = [time.monotonic() + TABLE_EVERY_S]  # when the table may be rewritten next
@@ -308,6 +311,7 @@ class Store:
             what="--out",
             listed=True,
         )
+        self._table_current = True
 
     def result(self, job: Job):
         """The Result of a finished job that kept its trace (emasim.sim.result.Result.load)."""
