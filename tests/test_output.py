@@ -598,3 +598,16 @@ def test_a_file_listed_into_a_result_rewrites_its_marker_whole_or_not_at_all(tmp
         write_file(folder / "u.bin", b"2", is_ours=lambda p: True, what="t", listed=True)
     assert json.loads((folder / MARKER).read_text()) == after
     assert is_emasim_folder(folder) and "u.bin" in foreign_files(folder)
+
+
+def test_a_journal_named_file_in_a_published_result_is_a_users(tmp_path):
+    """Only a build keeps a journal: in a published result a file named like it is a user's.
+    It proves nothing emasim's, is never removed, and keeps the result from being replaced."""
+    folder = write_folder(tmp_path / "r", fill)
+    (folder / "mine.txt").write_text("notes")
+    st = os.lstat(folder / "mine.txt")
+    (folder / JOURNAL).write_text(f"{st.st_dev}:{st.st_ino} mine.txt\n")
+    assert foreign_files(folder) == [JOURNAL, "mine.txt"]
+    assert not remove_own(folder)
+    assert sorted(os.listdir(folder)) == [JOURNAL, "mine.txt"]
+    assert (folder / "mine.txt").read_text() == "notes"

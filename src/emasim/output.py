@@ -53,12 +53,20 @@ def is_emasim_folder(path: Path) -> bool:
     return _real_folder(Path(path)) and (Path(path) / MARKER).is_file()
 
 
+def _records(folder: Path) -> tuple[str, ...]:
+    """The record files emasim keeps in ``folder``: its marker, and in a build its journal
+    (a published result has none: a file of that name there is a user's)."""
+    return (MARKER, JOURNAL) if _DEBRIS.match(folder.name) else (MARKER,)
+
+
 def _owned(folder: Path) -> dict[str, bool]:
     """Each file or link under ``folder`` -> whether it is emasim's: listed in the manifest with
-    its stamp unchanged (a name without a stamp proves nothing), else journalled with its inode."""
-    stamps, journal, found = manifest_stamps(folder), set(), {}
+    its stamp unchanged (a name without a stamp proves nothing), else, in a build, journalled
+    with its inode."""
+    stamps, journal, found, records = manifest_stamps(folder), set(), {}, _records(folder)
     with contextlib.suppress(OSError):
-        journal = set(map(os.fsdecode, (folder / JOURNAL).read_bytes().split(b"\n")))
+        if JOURNAL in records:
+            journal = set(map(os.fsdecode, (folder / JOURNAL).read_bytes().split(b"\n")))
     for root, dirs, files in os.walk(folder):  # never into a link
         for name in files + [d for d in dirs if os.path.islink(os.path.join(root, d))]:
             with contextlib.suppress(OSError):
@@ -66,7 +74,7 @@ def _owned(folder: Path) -> dict[str, bool]:
     return {
         name: stamps[name] == stamp(st) if name in stamps else _LINE.format(st, name) in journal
         for name, st in found.items()
-        if name not in (MARKER, JOURNAL)
+        if name not in records
     }
 
 
@@ -80,7 +88,7 @@ def remove_own(folder: Path) -> bool:
     its journal, marker and emptied folders; True when ``folder`` is gone."""
     if not _real_folder(folder):
         return False
-    for name in [name for name, own in _owned(folder).items() if own] + [JOURNAL, MARKER]:
+    for name in [name for name, own in _owned(folder).items() if own] + [*_records(folder)]:
         with contextlib.suppress(OSError):
             os.unlink(folder / name)
     for root, _, _ in os.walk(folder, topdown=False):  # the deepest first, ``folder`` last
