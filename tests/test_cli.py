@@ -162,7 +162,7 @@ def test_a_controllers_design_check_is_one_warning_line(tmp_path):
     assert "UserWarning" not in result.output and "warnings.warn" not in result.output
 
 
-def test_the_compile_is_never_counted_as_simulation_time(monkeypatch):
+def test_on_a_fake_clock_the_compile_is_never_counted_as_simulation_time(monkeypatch):
     """A comparison loads (or compiles) the engine and its laws before its timer starts. On a
     clock that moves only while the engine loads (no wall time is read), the load is the
     meta's compile_s and none of it is in simulation_wall_s."""
