@@ -69,6 +69,7 @@ from .diagnosis import likely_cause
 from .lawguard import law_failure, watching
 from .result import Result, RunDescription
 from .setup import Setup
+from .spool import TraceSpool, chunk_rows
 from .trace import (
     C_CURRENT_LIMIT,
     C_IQ_REF,
@@ -228,7 +229,8 @@ def check_state(x, p, limits, status, tick):
 
 @njit(cache=True, error_model="numpy")
 def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
-    """Store row r of the traces: the kept columns (Model.trace_columns) of the TRACE row,
+    """Store row r of the traces (at r modulo the trace's rows: emasim.sim.spool empties a
+    short trace as it fills): the kept columns (Model.trace_columns) of the TRACE row,
     assembled in Data.trace_row."""
     row, x, p, meas, drive = data.trace_row, data.x, model.params, data.meas, data.drive
     row[0] = t
@@ -253,6 +255,7 @@ def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
     row[C_MEASURED_IQ] = meas[M_IQ]
     row[C_MEASURED_FORCE] = meas[M_FORCE]
     columns, trace = model.trace_columns, data.trace
+    r = r % trace.shape[1]
     for j in range(columns.size):
         trace[j, r] = row[columns[j]]
 
@@ -265,7 +268,8 @@ def run_ticks(k0, k1, model, data, position_law, speed_law, current_law):
     right-hand side where the plant is the drive alone (emasim.plant.actuator.DRIVE), every
     element's otherwise.
 
-    Row k // record_every of the trace is recorded at every ``record_every``-th tick.
+    Row k // record_every of the trace is recorded at every ``record_every``-th tick (modulo
+    the trace's rows).
     The sensor noise generator is seeded at k0 == 0. On a NaN/inf or a state beyond the
     plant's limits the run stops and ``data.status`` holds (code, tick, state index); on a
     law's non-finite output, (LAW_FAILED, tick, slot).
@@ -334,13 +338,19 @@ class EngineRun:
     ``advance(k_end)`` runs ticks up to k_end (exclusive) and raises
     :class:`emasim.errors.SimulationDiverged` with the time and the state's name on a blow-up;
     ``x`` is the plant state in between (a co-simulation master reads and feeds it).
+    A trace larger than emasim.sim.spool.SPOOL_BYTES is recorded one row group at a time and
+    appended to a :class:`~emasim.sim.spool.TraceSpool` as each fills: memory holds one row
+    group of it, whatever the duration.
     """
 
     def __init__(self, setup: Setup, keep_elements: tuple[str, ...] = ()):
         self.setup = setup
         self.keep_elements = keep_elements
         self.compile_s = load_compiled()
-        self.run = setup.start(keep_elements)  # compiles the laws, where they are new
+        columns = tuple(setup.kept_columns(keep_elements))
+        group = chunk_rows(len(columns))
+        self.spool = TraceSpool(columns) if setup.recorded_rows > group else None
+        self.run = setup.start(keep_elements, rows=group if self.spool else None)
         self.tick = 0
         self.wall_s = 0.0
 
@@ -349,7 +359,20 @@ class EngineRun:
         """The plant state, advanced in place."""
         return self.run.data.x
 
+    @property
+    def _group_ticks(self) -> int:
+        """The ticks that fill the trace (a spooled one's row group)."""
+        return self.run.data.trace.shape[1] * self.setup.record_every
+
     def advance(self, k_end: int) -> None:
+        while self.tick < k_end:  # a spooled trace: up to each full row group, then empty it
+            full = self._group_ticks
+            stop = k_end if self.spool is None else min(k_end, (self.tick // full + 1) * full)
+            self._ticks(stop)
+            if self.spool is not None and self.tick % full == 0:
+                self.spool.append(self.run.data.trace)
+
+    def _ticks(self, k_end: int) -> None:
         model, data, laws = self.run.model, self.run.data, self.run.laws
         status = data.status
         start = time.perf_counter()
@@ -364,13 +387,21 @@ class EngineRun:
         self.tick = k_end
 
     def result(self) -> Result:
-        """The traces so far: the kept columns (Setup.kept_columns), without a copy."""
+        """The traces so far: the kept columns (Setup.kept_columns), without a copy; a spooled
+        trace, its rows recorded so far, as the Parquet file they went into (read by column).
+        The run ends here for a spooled trace: its file is closed."""
         setup = self.setup
         columns = tuple(TRACE_COLUMNS[i] for i in self.run.model.trace_columns)
+        traces = self.run.data.trace
+        if self.spool is not None:  # the rows recorded since the last full row group
+            flushed = self.tick // self._group_ticks * traces.shape[1]
+            recorded = -(-self.tick // setup.record_every) - flushed
+            self.spool.append(traces[:, :recorded])
+            traces = self.spool.finish()
         units = TRACE.units()
         return Result(
             columns,
-            self.run.data.trace.T,
+            traces if self.spool is not None else traces.T,
             meta={"simulation_wall_s": self.wall_s, "compile_s": self.compile_s},
             description=RunDescription(
                 elements=A.PLANT.present_elements(setup.plant, keep=self.keep_elements),

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
 import pyarrow.parquet as pq
 import tomli_w
 
@@ -29,6 +28,8 @@ from ..jsonio import json_text
 from ..manifest import verify_files
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import CLI_HINTS, new_file, write_file, write_folder, write_new
+from . import spool
+from .spool import PARQUET_OPTIONS, ParquetTraces, arrow_table
 
 RPM_PER_RAD_S = 30.0 / np.pi
 TRACE_FORMATS = ("parquet", "csv", "mat")  # result.<format>
@@ -113,10 +114,13 @@ class RunDescription:
 @dataclass
 class Result:
     """Traces of one run. ``result["motor_speed_rad_s"]`` returns a column as an array;
-    ``description`` says what the run was (saved in meta.json as ``run``)."""
+    ``description`` says what the run was (saved in meta.json as ``run``). ``data`` is the
+    traces, one column per signal: an array, or for a trace larger than
+    emasim.sim.spool.SPOOL_BYTES a :class:`~emasim.sim.spool.ParquetTraces` (its Parquet file,
+    read a column at a time; ``np.asarray(result.data)`` reads it all)."""
 
     columns: tuple[str, ...]
-    data: np.ndarray
+    data: np.ndarray | ParquetTraces
     scenario: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
@@ -124,9 +128,12 @@ class Result:
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
-            return self.data[:, self.columns.index(name)]
+            index = self.columns.index(name)
         except ValueError:
             raise KeyError(f"no column '{name}'; columns: {', '.join(self.columns)}") from None
+        if isinstance(self.data, ParquetTraces):
+            return self.data.column(index)
+        return self.data[:, index]
 
     @property
     def outer_loop(self) -> str:
@@ -145,7 +152,7 @@ class Result:
         """The traces as a pandas DataFrame, one column per signal (names carry units)."""
         import pandas as pd  # imported here: it costs start-up time and runs do not need it
 
-        return pd.DataFrame(self.data, columns=list(self.columns))
+        return pd.DataFrame(np.asarray(self.data), columns=list(self.columns))
 
     def to_timeresponse(self, outputs: list[str], inputs: list[str] = ()):
         """The traces as python-control's ``TimeResponseData``: the named columns as its
@@ -168,24 +175,27 @@ class Result:
             title=f"{self.scenario.get('name', 'run')}: {self.meta.get('label', '')}",
         )
 
-    def _to_arrow(self) -> pa.Table:
-        """One float64 column per signal, made from the data's own buffers: no copy when each
-        column is contiguous (the engine's traces are), and none of pyarrow's conversion from
-        numpy, which imports pandas (a third of a second of every run's start-up)."""
-        arrays = []
-        for i in range(len(self.columns)):
-            column = np.ascontiguousarray(self.data[:, i], dtype=np.float64)
-            arrays.append(
-                pa.Array.from_buffers(pa.float64(), column.size, [None, pa.py_buffer(column)])
-            )
-        return pa.Table.from_arrays(arrays, names=list(self.columns))
+    def _write_parquet(self, handle) -> None:
+        """The traces as a Parquet file: a spooled trace's file as it is, else one float64
+        column per signal (emasim.sim.spool.arrow_table: no copy)."""
+        if isinstance(self.data, ParquetTraces):
+            self.data.copy_to(handle)
+        else:
+            table = arrow_table(self.columns, (self.data[:, i] for i in range(len(self.columns))))
+            pq.write_table(table, handle, **PARQUET_OPTIONS)
+
+    def _csv_blocks(self):
+        """The traces as CSV text, in blocks (one per row group of a spooled trace): a header
+        of column names (each carries its unit), one row per recorded sample, each number in
+        the shortest text that reads back to the same float64 (Python's repr; NaN as nan)."""
+        yield ",".join(self.columns) + "\n"
+        spooled = isinstance(self.data, ParquetTraces)
+        for block in self.data.row_groups() if spooled else [self.data]:
+            yield "".join(",".join(map(repr, row)) + "\n" for row in block.tolist())
 
     def _csv(self) -> str:
-        """The traces as CSV text: a header of column names (each carries its unit), one row
-        per recorded sample, each number in the shortest text that reads back to the same
-        float64 (Python's repr; NaN as nan)."""
-        rows = (",".join(map(repr, row)) for row in self.data.tolist())
-        return ",".join(self.columns) + "\n" + "\n".join(rows) + "\n"
+        """The traces as CSV text (:meth:`_csv_blocks`)."""
+        return "".join(self._csv_blocks())
 
     def _mat(self) -> bytes:
         """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
@@ -193,7 +203,7 @@ class Result:
         from scipy.io import savemat
 
         units = self.description.units if self.description is not None else {}
-        struct = {name: self.data[:, i] for i, name in enumerate(self.columns)}
+        struct = {name: self[name] for name in self.columns}
         struct["units"] = {name: units.get(name, "") for name in self.columns}
         struct["scenario"] = self.scenario.get("name", "")
         struct["label"] = self.meta.get("label", "")
@@ -240,9 +250,11 @@ class Result:
             path = folder / f"result.{trace_format}"
             if trace_format == "parquet":
                 with new_file(path) as handle:
-                    pq.write_table(self._to_arrow(), handle)
+                    self._write_parquet(handle)
             elif trace_format == "csv":
-                write_new(path, self._csv())
+                with new_file(path) as handle:
+                    for block in self._csv_blocks():
+                        handle.write(block.encode())
             else:
                 write_new(path, self._mat())
         meta = self.meta
@@ -281,7 +293,7 @@ class Result:
         trace = _trace_file(folder)
         verify_files(folder, [trace.name, "meta.json", "metrics.json", "scenario.toml"])
         meta = _parse(folder / "meta.json", json.loads)
-        columns, data = _parse(trace, lambda _: read_traces(folder))
+        columns, data = _parse(trace, lambda _: read_traces(folder, lazy=True))
         counted = meta.pop("traces", None)
         if not isinstance(counted, dict) or counted.get("file") != trace.name:
             raise DamagedResult(f"{folder / 'meta.json'}: does not count the rows of {trace.name}")
@@ -400,9 +412,13 @@ def check_trace_format(trace_format: str) -> None:
         raise InputError(f"--format: one of {', '.join(TRACE_FORMATS)}, got {trace_format!r}")
 
 
-def _drawer(figures):
-    """``figures``, or one that draws in this process."""
-    if figures is not None:
+def _drawer(figures, result=None):
+    """``figures``, or one that draws in this process: by default, and for a ``result`` (a
+    Result or Comparison) with a spooled trace, which another process would get whole."""
+    runs = getattr(result, "results", {"": result}).values()
+    if figures is not None and not any(
+        isinstance(getattr(run, "data", None), ParquetTraces) for run in runs
+    ):
         return figures
     from ..analysis.figure_process import DrawHere
 
@@ -457,7 +473,7 @@ def _save(result, folder, plot, force, kind, trace_format, figures, words):
         target, unique = default_folder(result.scenario, named), True
     else:
         target, unique = Path(folder), False
-    drawer = _drawer(figures)
+    drawer = _drawer(figures, result)
 
     def write(tmp: Path) -> None:
         result.write_files(tmp, plot, trace_format=trace_format, figures=drawer)
@@ -467,10 +483,16 @@ def _save(result, folder, plot, force, kind, trace_format, figures, words):
                         hints=hints)  # fmt: skip
 
 
-def read_traces(folder: Path) -> tuple[tuple[str, ...], np.ndarray]:
-    """(column names, float64 data) of the traces a run folder holds, in any TRACE_FORMATS."""
-    if (folder / "result.parquet").exists():
-        table = pq.read_table(folder / "result.parquet")
+def read_traces(folder: Path, lazy: bool = False) -> tuple[tuple[str, ...], np.ndarray]:
+    """(column names, float64 data) of the traces a run folder holds, in any TRACE_FORMATS;
+    ``lazy``: a Parquet file larger than SPOOL_BYTES as :class:`ParquetTraces` (read by
+    column), not in memory."""
+    path = folder / "result.parquet"
+    if lazy and path.exists() and path.stat().st_size > spool.SPOOL_BYTES:
+        traces = ParquetTraces.open(path)
+        return traces.columns, traces
+    if path.exists():
+        table = pq.read_table(path)
         data = np.array([c.to_numpy() for c in table.columns], dtype=np.float64).T
         return tuple(table.column_names), data
     if (folder / "result.csv").exists():

@@ -152,15 +152,22 @@ class Setup:
             if name not in absent and (chosen is None or name in chosen)
         )
 
-    def start(self, keep_elements: tuple[str, ...] = ()) -> "RunState":
+    @property
+    def recorded_rows(self) -> int:
+        """The trace's rows: one at every record_every-th tick, the first at tick 0."""
+        return (self.n_ticks + self.record_every - 1) // self.record_every
+
+    def start(self, keep_elements: tuple[str, ...] = (), rows: int | None = None) -> "RunState":
         """The compiled core's records (emasim.sim.core), with fresh copies of everything a run
         changes (plant state, slot states, play operators), and an empty trace of the columns
-        :meth:`kept_columns` names. Without a position loop the position slot holds
+        :meth:`kept_columns` names, of ``rows`` rows (default: every recorded row; fewer, and
+        the loop records row r at r modulo rows, for a caller that empties it as it fills).
+        Without a position loop the position slot holds
         :func:`~emasim.control.slot.absent_slot` (the loop never calls it)."""
         position = self.position if self.position is not None else absent_slot()
         slots = (position, self.speed, self.current)
         kept = self.kept_columns(keep_elements)
-        rows = (self.n_ticks + self.record_every - 1) // self.record_every
+        rows = self.recorded_rows if rows is None else rows
         model = Model(
             params=_floats(self.plant),
             limits=_floats(self.limits),

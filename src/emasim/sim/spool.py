@@ -1,0 +1,125 @@
+"""Traces too large for memory: written to Parquet in row groups as the run goes, read back by
+column.
+
+A run whose trace would take more than SPOOL_BYTES (the kept columns x the recorded rows x 8
+bytes) keeps only one row group of it in memory: the engine records into a buffer of
+:func:`chunk_rows` rows, and each time the buffer fills, :class:`TraceSpool` appends it to a
+Parquet file as one row group. The file is a temporary file without a name
+(``tempfile.TemporaryFile``: the system removes it when its last handle closes, so a killed
+run leaves nothing behind). The finished file is read through :class:`ParquetTraces`, which a
+:class:`emasim.sim.result.Result` holds instead of an array: a column is read one row group at
+a time into its own array, so reading one costs that column and one row group, never the
+whole trace; saving copies the file's bytes as they are. A saved result folder whose
+``result.parquet`` is larger than SPOOL_BYTES is read back the same way.
+
+SPOOL_BYTES is 32 MiB, set by the memory it bounds, not by read speed: a run then holds one
+row group (32 MiB) beside the ~210 MB that importing emasim and its compiled core takes
+(docs/speed.md), well inside the 600 MB a 1000 s run at 10 kHz must stay under (issue 30).
+Parquet's own advice, row groups of 512 MiB to 1 GiB (parquet.apache.org, "Configurations"),
+is for sequential reads on HDFS and would hold most of such a run in memory; pyarrow writes
+1 Mi rows per group by default, 8 MiB of each float64 column, the same order as here. A trace
+of up to 32 MiB (about 14 s of all 24 columns at 10 kHz) stays in memory as before, so short
+runs pay no file input and output.
+"""
+
+import os
+import shutil
+import tempfile
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+SPOOL_BYTES = 32 * 2**20
+# how emasim writes every Parquet trace: Snappy-compressed (pyarrow's default) and without
+# dictionary encoding, which samples of a float signal, nearly all distinct, never repeat
+# enough to use (measured on 1e6 rows of speed-sine: 175 against 178 MB, written in 0.5
+# against 2.6 s)
+PARQUET_OPTIONS = {"use_dictionary": False}
+
+
+def chunk_rows(columns: int) -> int:
+    """Rows of one row group of ``columns`` float64 columns: SPOOL_BYTES of them."""
+    return max(1, SPOOL_BYTES // (8 * max(columns, 1)))
+
+
+def arrow_table(names, columns) -> pa.Table:
+    """One float64 Arrow column per 1-D array of ``columns``, made from the arrays' own buffers:
+    no copy for a contiguous array (the engine's trace rows are), and none of pyarrow's
+    conversion from numpy, which imports pandas (a third of a second of a run's start-up)."""
+    arrays = []
+    for column in columns:
+        column = np.ascontiguousarray(column, dtype=np.float64)
+        arrays.append(
+            pa.Array.from_buffers(pa.float64(), column.size, [None, pa.py_buffer(column)])
+        )
+    return pa.Table.from_arrays(arrays, names=list(names))
+
+
+class TraceSpool:
+    """A temporary Parquet file that a run's trace is appended to, one row group at a time."""
+
+    def __init__(self, names: tuple[str, ...]):
+        self.names = names
+        self.handle = tempfile.TemporaryFile(prefix="emasim-trace-")
+        schema = pa.schema([(name, pa.float64()) for name in names])
+        self._writer = pq.ParquetWriter(self.handle, schema, **PARQUET_OPTIONS)
+
+    def append(self, block: np.ndarray) -> None:
+        """Append ``block`` (one row per column, as the engine records it) as a row group."""
+        if block.shape[1]:
+            table = arrow_table(self.names, block)
+            self._writer.write_table(table, row_group_size=block.shape[1])
+
+    def finish(self) -> "ParquetTraces":
+        """Close the Parquet file (its footer written) and return it to be read."""
+        self._writer.close()
+        return ParquetTraces(self.handle)
+
+
+class ParquetTraces:
+    """The traces of a Parquet file, read by column: ``column(i)`` reads column i one row group
+    at a time into a new float64 array; ``shape`` is (rows, columns), as an in-memory trace's;
+    ``np.asarray`` of it reads every column (the whole trace in memory). ``handle``: the file,
+    open for binary reading (a spool's temporary file, or a saved result's file)."""
+
+    def __init__(self, handle):
+        self.handle = handle
+        self._file = pq.ParquetFile(handle)
+        self.columns = tuple(self._file.schema_arrow.names)
+        self.shape = (self._file.metadata.num_rows, len(self.columns))
+
+    @classmethod
+    def open(cls, path: os.PathLike) -> "ParquetTraces":
+        """The traces of the Parquet file at ``path`` (opened now: it is read from this handle)."""
+        return cls(open(path, "rb"))
+
+    def column(self, index: int) -> np.ndarray:
+        out = np.empty(self.shape[0])
+        start = 0
+        for group in range(self._file.num_row_groups):
+            values = self._file.read_row_group(group, columns=[self.columns[index]]).column(0)
+            out[start : start + len(values)] = values.to_numpy()
+            start += len(values)
+        return out
+
+    def row_groups(self):
+        """Each row group as a (rows, columns) float64 array, in order (a CSV is written so)."""
+        for group in range(self._file.num_row_groups):
+            table = self._file.read_row_group(group)
+            yield np.column_stack([c.to_numpy() for c in table.columns])
+
+    def copy_to(self, handle) -> None:
+        """Write the Parquet file's bytes, as they are, to the binary ``handle``."""
+        self.handle.seek(0)
+        shutil.copyfileobj(self.handle, handle, 2**20)
+
+    def __array__(self, dtype=None, copy=None):
+        data = np.empty(self.shape)
+        for i in range(self.shape[1]):
+            data[:, i] = self.column(i)
+        return data if dtype is None else data.astype(dtype)
+
+    def __reduce__(self):
+        # another process gets the traces themselves: this file is this process's
+        return np.asarray, (np.asarray(self),)
