@@ -15,18 +15,20 @@ Reproduce: three fresh ``emasim reproduce`` processes, every paper experiment an
 the median.
 Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasim and loaded
 the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
-after each, with the bytes of the kept trace (``Result.data``) and peak / trace; 1000 s runs in
-a process of its own (MEMORY_S), once with every column and once recording only the columns
-the metrics and plots read (``solver.record_signals``). Batch: the study facility's
-throughput on one and on two worker processes (``bench_study.study_scaling``); beside it,
-CEILING PID runs of the same Monte Carlo, cut short, their compiled loop alone (EngineRun.advance,
-the GIL released) on one and on two Python threads: the scaling this machine's two cores
-allow; and the same runs in one ``prange`` batch kernel (``batch_kernel.py``) on one and on two
-of numba's threads, interleaved with them.
-Monte Carlo: the wall time of the 200-run
-bench-step robustness study of each controller set (``bench_study.monte_carlo_seconds``).
-FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per ``doStep``. Acceptance: the wall time
-of the whole battery on bench-step's two controller sets (``bench_acceptance.battery_figures``).
+after each, with the bytes its trace would take in memory (rows x columns x 8; a trace larger
+than emasim.sim.spool.SPOOL_BYTES streams to disk instead); 1000 s runs in a process of its own
+(MEMORY_S); and each of MEMORY_S through the command line, ``emasim run speed-sine -c speed=pi
+--set duration_s=D`` (metrics, plot and result folder included), whose peak RSS is the largest
+of its processes' (``RUSAGE_CHILDREN`` of a fresh process that runs it). Batch: the study
+facility's throughput on one and on two worker processes (``bench_study.study_scaling``);
+beside it, CEILING PID runs of the same Monte Carlo, cut short, their compiled loop alone
+(EngineRun.advance, the GIL released) on one and on two Python threads: the scaling this
+machine's two cores allow; and the same runs in one ``prange`` batch kernel
+(``batch_kernel.py``) on one and on two of numba's threads, interleaved with them. Monte Carlo:
+the wall time of the 200-run bench-step robustness study of each controller set
+(``bench_study.monte_carlo_seconds``). FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per
+``doStep``. Acceptance: the wall time of the whole battery on bench-step's two controller sets
+(``bench_acceptance.battery_figures``).
 
 ``--write`` stores the figures in ``benchmarks/results.json`` (with the date, platform, CPU
 count and the Python, numpy and numba versions) and rewrites docs/speed.md's table from it
@@ -38,9 +40,10 @@ notes the part's date under ``updated``, which the table's first line names. A f
 ``peers``).
 ``--quick`` (a few seconds, what CI runs): every scenario and controller cut to QUICK_S of
 simulated time, one run each, the reference path on QUICK_REFERENCE_S, start-up of ``--help``
-and of the input error once each, memory of a QUICK_MEMORY_S run, the batch with
-bench_study.QUICK_PLANTS plants of its QUICK_S; no ``list``, single or cold runs, reproduce,
-Monte Carlo or FMU. Its results are marked ``"quick": true`` and docs/speed.md's table says so.
+and of the input error once each, memory of a QUICK_MEMORY_S run (in process and through the
+command line), the batch with bench_study.QUICK_PLANTS plants of its QUICK_S; no ``list``,
+single or cold runs, reproduce, Monte Carlo or FMU. Its results are marked ``"quick": true``
+and docs/speed.md's table says so.
 """
 
 import argparse
@@ -80,24 +83,35 @@ BASELINE_S = 1e-3
 QUICK_STARTUP = ("help", "input_error")
 
 # Run in a fresh process: simulate speed-sine for each duration in argv, in turn, and print the
-# peak RSS so far (ru_maxrss: kB on Linux, bytes on macOS) and the kept trace's bytes after each.
-# With "analysis" first, the run records only the columns its metrics and plots read.
+# peak RSS so far (ru_maxrss: kB on Linux, bytes on macOS) and the trace's bytes after each.
 MEMORY_CHILD = """
 import json, resource, sys
-from emasim.analysis.report import ANALYSIS_COLUMNS
+import numpy as np
 from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
 setup = load_scenario("speed-sine").setup()
-durations = sys.argv[1:]
-if durations[0] == "analysis":
-    setup, durations = setup.with_(record_signals=ANALYSIS_COLUMNS), durations[1:]
 unit = 1 if sys.platform == "darwin" else 1024
-for text in durations:
+for text in sys.argv[1:]:
     result = simulate(setup.with_(duration_s=float(text)))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
+    rows, columns = result.data.shape
     print(json.dumps({"duration_s": float(text), "peak_rss_bytes": peak,
-                      "trace_bytes": int(result.data.nbytes), "columns": len(result.columns)}))
+                      "trace_bytes": 8 * rows * columns, "columns": columns,
+                      "streamed": not isinstance(result.data, np.ndarray)}))
     del result
+"""
+# Run in a fresh process: the command line (argv), then print the peak RSS of the largest of its
+# processes (RUSAGE_CHILDREN) and the trace's bytes that its meta.json counts.
+CLI_MEMORY_CHILD = """
+import json, pathlib, resource, subprocess, sys
+out = pathlib.Path(sys.argv[1])
+subprocess.run([sys.executable, "-m", "emasim", *sys.argv[2:], "--out", str(out)], check=True,
+               capture_output=True)
+unit = 1 if sys.platform == "darwin" else 1024
+traces = json.loads((out / "meta.json").read_text())["traces"]
+print(json.dumps({"peak_rss_bytes": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * unit,
+                  "trace_bytes": 8 * traces["rows"] * traces["columns"],
+                  "columns": traces["columns"]}))
 """
 
 
@@ -216,32 +230,34 @@ def reproduce_seconds(runs: int = 3) -> float:
     )
 
 
-def peak_memory(*durations_s: float, analysis_only: bool = False) -> list[dict]:
+def peak_memory(*durations_s: float) -> list[dict]:
     """Peak RSS of one fresh process after simulating each of ``durations_s`` of speed-sine in
-    turn, the kept trace's bytes and their ratio (MEMORY_CHILD); ``analysis_only`` records
-    only the columns the metrics and plots read."""
-    flag = ["analysis"] if analysis_only else []
-    cmd = [sys.executable, "-c", MEMORY_CHILD, *flag, *(repr(float(d)) for d in durations_s)]
+    turn, and the trace's bytes (MEMORY_CHILD)."""
+    cmd = [sys.executable, "-c", MEMORY_CHILD, *(repr(float(d)) for d in durations_s)]
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True)
-    runs = [json.loads(line) for line in proc.stdout.splitlines()]
-    for run in runs:
-        run["ratio"] = run["peak_rss_bytes"] / run["trace_bytes"]
-    return runs
+    return [json.loads(line) for line in proc.stdout.splitlines()]
+
+
+def command_line_memory(duration_s: float) -> dict:
+    """Peak RSS of ``emasim run speed-sine -c speed=pi --set duration_s=D`` (the largest of its
+    processes, CLI_MEMORY_CHILD), in a new temporary folder, with the trace's bytes."""
+    args = ["run", "speed-sine", "-c", "speed=pi", "--set", f"duration_s={duration_s:g}"]
+    with tempfile.TemporaryDirectory() as out:
+        cmd = [sys.executable, "-c", CLI_MEMORY_CHILD, f"{out}/run", *args]
+        proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=out,
+                              env=user_environment())  # fmt: skip
+    return {"duration_s": duration_s, **json.loads(proc.stdout)}
 
 
 def memory_figures(durations_s) -> dict:
     """The baseline (BASELINE_S: import and compiled code) and the first duration in one
-    process, every other duration in a process of its own."""
+    process, every other duration in a process of its own; each duration through the command
+    line."""
     baseline, *runs = peak_memory(BASELINE_S, durations_s[0])
-    del baseline["ratio"]  # a 1 ms trace: the ratio says nothing
     for duration in durations_s[1:]:
         runs += peak_memory(duration)
-    runs += peak_memory(durations_s[-1], analysis_only=True)
-    for run in runs:  # what the run adds to the process: above the baseline, per trace byte
-        run["added_ratio"] = (run["peak_rss_bytes"] - baseline["peak_rss_bytes"]) / run[
-            "trace_bytes"
-        ]
-    return {"baseline": baseline, "runs": runs}
+    cli = [command_line_memory(duration) for duration in durations_s]
+    return {"baseline": baseline, "runs": runs, "command_line": cli}
 
 
 def core_seconds(setups: list, threads: int) -> float:
@@ -429,8 +445,13 @@ def report(results: dict) -> None:
     for run in memory["runs"]:
         print(
             f"peak RSS, {run['duration_s']:g} s of speed-sine: "
-            f"{run['peak_rss_bytes'] / 1e6:.0f} MB, kept trace {run['trace_bytes'] / 1e6:.1f} MB "
-            f"(ratio {run['ratio']:.2f})"
+            f"{run['peak_rss_bytes'] / 1e6:.0f} MB, trace {run['trace_bytes'] / 1e6:.1f} MB "
+            f"({'streamed to disk' if run['streamed'] else 'in memory'})"
+        )
+    for run in memory["command_line"]:
+        print(
+            f"peak RSS, emasim run speed-sine -c speed=pi, {run['duration_s']:g} s: "
+            f"{run['peak_rss_bytes'] / 1e6:.0f} MB, trace {run['trace_bytes'] / 1e6:.1f} MB"
         )
     bench_study.report(results["batch"], results.get("monte_carlo"))
     if "acceptance" in results:

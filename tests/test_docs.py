@@ -14,7 +14,7 @@ def test_the_scenario_reference_page_is_the_schemas():
 
 def test_the_reference_shows_each_keys_range_and_default():
     page = reference.render()
-    assert "| `duration_s` | float | required | > 0, <= 3600 |" in page
+    assert "| `duration_s` | float | required | > 0, <= 86400 |" in page
     assert "## `axis scenario.loop`: `AxisLoopConfig`" in page
     for model in ("SpeedSuperTwisting", "PositionPID", "LinkageParams", "Step", "AxisFriction"):
         assert f": `{model}`" in page, model

@@ -3,7 +3,9 @@ known in closed form (first-order steps, exponential recoveries, sines of known 
 
 The traces are written by hand into a minimal stand-in for a run result: ``t``, the columns
 by name and the experiment it made (emasim.sim.result.Experiment), which is all the report
-functions read.
+functions read. Every test runs twice: on the trace as one block, and cut into blocks of 997
+rows as a long run's row groups are read (emasim.sim.result.seamed_blocks), where the metrics
+computed in one pass over the blocks must give the same closed-form answers.
 """
 
 import dataclasses
@@ -16,7 +18,7 @@ import pytest
 from emasim.analysis import report as r
 from emasim.interface import LIMIT_CURRENT, LIMIT_SPEED, LIMIT_VOLTAGE
 from emasim.scenarios.loader import load_scenario
-from emasim.sim.result import Experiment
+from emasim.sim.result import Experiment, seamed_blocks
 
 RPM = math.pi / 30.0  # rad/s per rpm
 DEG = math.pi / 180.0  # rad per deg
@@ -25,7 +27,10 @@ MAX_CURRENT_A = 58.0
 
 
 class FakeResult:
-    """What the report reads of a run: the time, the trace columns by name, the experiment."""
+    """What the report reads of a run: the time, the trace columns by name, the experiment;
+    the columns a block of ``block_rows`` rows at a time (None: one block)."""
+
+    block_rows = None
 
     def __init__(self, t, experiment, **columns):
         self.t = np.asarray(t, dtype=float)
@@ -42,6 +47,20 @@ class FakeResult:
 
     def __getitem__(self, name):
         return self._columns[name]
+
+    @property
+    def span(self):
+        return float(self.t[0]), float(self.t[-1])
+
+    def blocks(self, *names):
+        columns = [self.t if name == "t_s" else self._columns[name] for name in names]
+        cuts = range(self.block_rows or self.t.size, self.t.size, self.block_rows or self.t.size)
+        return seamed_blocks(zip(*(np.split(c, list(cuts)) for c in columns), strict=True))
+
+
+@pytest.fixture(autouse=True, params=[None, 997], ids=["one-block", "blocks-997"])
+def block_rows(request, monkeypatch):
+    monkeypatch.setattr(FakeResult, "block_rows", request.param)
 
 
 def grid(t_end, dt):
@@ -360,7 +379,7 @@ def bench_step_result(linkage=False, run=10.0):
     """Rudder step to 4.72 deg, first order; from the steady window on a 5 Hz cosine on the
     angle and, independently, on the rate, each with its crest at the window's middle."""
     t = grid(run, 1e-3)
-    start, end = r.steady_window(t)
+    start, end = r.steady_window(t[-1])
     mid = 0.5 * (start + end)
     in_window = t >= start
     phase = 2 * np.pi * CHATTER_HZ * (t - mid)
@@ -388,7 +407,7 @@ def test_bench_figures_are_on_the_encoder_reading_with_the_true_ones_beside():
     has an RMS error of 0.01 deg, no vibration and no rate."""
     result = bench_step_result(linkage=True)
     t = result.t
-    start = r.steady_window(t)[0]
+    start = r.steady_window(t[-1])[0]
     true_angle = result["rudder_angle_rad"] / DEG
     reading = np.where(t >= start - r.RATE_WINDOW_S, 4.71, true_angle)  # its jump before it
     result._columns["measured_rudder_rad"] = DEG * reading
@@ -417,8 +436,8 @@ def test_differenced_rate_is_the_change_over_the_window():
 
 def test_steady_window():
     assert r.BENCH_STEADY_S == 2.0
-    assert r.steady_window(grid(10.0, 0.01)) == (2.0, 10.0)
-    assert r.steady_window(grid(3.0, 0.01)) == (1.5, 3.0)  # half the run when shorter
+    assert r.steady_window(10.0) == (2.0, 10.0)
+    assert r.steady_window(3.0) == (1.5, 3.0)  # half the run when shorter
 
 
 @pytest.mark.parametrize("linkage", [False, True])

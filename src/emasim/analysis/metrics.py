@@ -21,6 +21,7 @@ __all__ = [
     "Chattering",
     "ErrorStats",
     "LoadRecovery",
+    "SineFit",
     "SineTracking",
     "chattering",
     "dead_zone_time",
@@ -742,21 +743,48 @@ def sine_tracking(
     t = _time(t)
     y = _signal("y", y, t)
     reference = _signal("reference", reference, t)
-    frequency_Hz = _positive("frequency_Hz", frequency_Hz)
-    tw, yw, rw = _windowed(t, window, y, reference)
-    basis = sine_basis(tw, frequency_Hz)
-    (a_y, a_r), (b_y, b_r), _ = np.linalg.lstsq(basis, np.column_stack([yw, rw]), rcond=None)[0]
-    amplitude_ref = np.hypot(a_r, b_r)
-    if amplitude_ref == 0.0:
-        raise ValueError("reference must have a nonzero component at frequency_Hz")
-    lag = np.degrees(np.arctan2(b_r, a_r) - np.arctan2(b_y, a_y))
-    lag = float(lag - 360.0 * np.ceil((lag - 180.0) / 360.0))
-    return SineTracking(
-        max_abs_error=float(np.max(np.abs(rw - yw))),
-        gain=float(np.hypot(a_y, b_y) / amplitude_ref),
-        phase_lag_deg=lag,
-        lag_s=lag / (360.0 * frequency_Hz),
-    )
+    fit = SineFit(_positive("frequency_Hz", frequency_Hz))
+    fit.add(*_windowed(t, window, y, reference))
+    return fit.tracking()
+
+
+class SineFit:
+    """:func:`sine_tracking` of samples given a block at a time (a long run's row groups).
+
+    ``add(t, y, reference)`` adds a block; ``tracking()`` is the SineTracking of every sample
+    added. The least-squares rows ``[sin(2 pi f t), cos(2 pi f t), 1 | y, reference]`` of
+    the blocks are kept as their 5 x 5 triangular factor R (Householder QR, numpy.linalg.qr)
+    once a second block comes: the least-squares solution of R's rows is that of the rows it
+    replaces, so memory holds one block. One block is solved as it is, as sine_tracking
+    always has been."""
+
+    def __init__(self, frequency_Hz: float):
+        self.frequency_Hz = frequency_Hz
+        self._rows = None
+        self._max_abs_error = -np.inf
+
+    def add(self, t: np.ndarray, y: np.ndarray, reference: np.ndarray) -> None:
+        rows = np.column_stack([sine_basis(t, self.frequency_Hz), y, reference])
+        if self._rows is not None:
+            rows = np.linalg.qr(np.vstack([self._rows, rows]), mode="r")
+        self._rows = rows
+        largest = np.max(np.abs(reference - y))
+        self._max_abs_error = float(np.max([self._max_abs_error, largest]))  # NaN stays NaN
+
+    def tracking(self) -> SineTracking:
+        rows = self._rows
+        (a_y, a_r), (b_y, b_r), _ = np.linalg.lstsq(rows[:, :3], rows[:, 3:], rcond=None)[0]
+        amplitude_ref = np.hypot(a_r, b_r)
+        if amplitude_ref == 0.0:
+            raise ValueError("reference must have a nonzero component at frequency_Hz")
+        lag = np.degrees(np.arctan2(b_r, a_r) - np.arctan2(b_y, a_y))
+        lag = float(lag - 360.0 * np.ceil((lag - 180.0) / 360.0))
+        return SineTracking(
+            max_abs_error=self._max_abs_error,
+            gain=float(np.hypot(a_y, b_y) / amplitude_ref),
+            phase_lag_deg=lag,
+            lag_s=lag / (360.0 * self.frequency_Hz),
+        )
 
 
 def load_recovery(

@@ -30,13 +30,26 @@ def _line(ax, t, y, *style, **kwargs):
     if t.size > MAX_POINTS:
         bucket = -(-t.size // (MAX_POINTS // 2))
         n = t.size // bucket * bucket
-        blocks = y[:n].reshape(-1, bucket)
-        base = np.arange(0, n, bucket)
-        lo = base + np.nanargmin(np.where(np.isnan(blocks), np.inf, blocks), axis=1)
-        hi = base + np.nanargmax(np.where(np.isnan(blocks), -np.inf, blocks), axis=1)
-        keep = np.unique(np.concatenate([lo, hi, np.arange(n, t.size)]))
+        keep = np.unique(
+            np.concatenate([*_extremes(y[:n].reshape(-1, bucket)), np.arange(n, t.size)])
+        )
         t, y = t[keep], y[keep]
     return ax.plot(t, y, *style, **kwargs)
+
+
+def _extremes(buckets: np.ndarray, rows: int = 2**20):
+    """The index of each row's smallest and of its largest value in the flattened ``buckets``
+    (NaN skipped; a row of NaN alone gives its first), a slice of about
+    ``rows`` values at a time, so that a long trace's copies stay small."""
+    step = max(1, rows // buckets.shape[1])
+    lows, highs = [], []
+    for first in range(0, buckets.shape[0], step):
+        part = buckets[first : first + step]
+        base = np.arange(first, first + part.shape[0]) * buckets.shape[1]
+        nan = np.isnan(part)
+        lows.append(base + np.nanargmin(np.where(nan, np.inf, part), axis=1))
+        highs.append(base + np.nanargmax(np.where(nan, -np.inf, part), axis=1))
+    return np.concatenate(lows), np.concatenate(highs)
 
 
 def _legend(ax) -> None:

@@ -164,9 +164,10 @@ def differenced_rate(t: np.ndarray, reading: np.ndarray) -> np.ndarray:
     return (reading[ahead] - reading[behind]) / (t[ahead] - t[behind])
 
 
-def steady_window(t: np.ndarray) -> tuple[float, float]:
-    """Bench steady-state window: from BENCH_STEADY_S (or half the run, if shorter) to the end."""
-    return (min(BENCH_STEADY_S, 0.5 * t[-1]), t[-1])
+def steady_window(t_end: float) -> tuple[float, float]:
+    """Bench steady-state window: from BENCH_STEADY_S (or half the run, if shorter) to the run's
+    end ``t_end`` (s)."""
+    return (min(BENCH_STEADY_S, 0.5 * t_end), t_end)
 
 
 def run_metrics(result) -> dict:
@@ -206,22 +207,40 @@ def weighted_cost(tracking: float, chatter: float) -> float:
 
 def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
     """The two terms of :func:`tuning_cost`, before the weight: tracking, IAE(e) / (T R) +
-    RMS_s(e) / R + A_s(e) / R (dimensionless), and chattering TV(iq*) / I_max (1/s)."""
-    t = result.t
+    RMS_s(e) / R + A_s(e) / R (dimensionless), and chattering TV(iq*) / I_max (1/s). One pass
+    over the trace's blocks (Result.blocks): the trapezoids and differences sum across them,
+    the window's extremes and R are the blocks' extremes."""
     if result.outer_loop == "position":
-        reference, output = result["position_ref_m"], result["measured_position_m"]
+        names = ("position_ref_m", "measured_position_m")
     else:
-        reference, output = result["speed_ref_rad_s"], result["measured_speed_rad_s"]
-    scale = max(float(np.max(np.abs(reference))), 1e-12)
-    error = reference - output
-    window = cost_window(result)
-    steady = m.window_mask(t, window)
+        names = ("speed_ref_rad_s", "measured_speed_rad_s")
+    start, end = window = cost_window(result)
+    scale, iae, squares, variation = 0.0, 0.0, 0.0, 0.0
+    low, high, inside, first, last = np.inf, -np.inf, 0, None, None
+    for block in result.blocks("t_s", *names, "iq_ref_A"):
+        t, reference, output, iq_ref = block.columns
+        error = reference - output
+        scale = max(scale, float(np.max(np.abs(reference))))
+        iae += np.trapezoid(np.abs(error), t)
+        variation += np.sum(np.abs(np.diff(iq_ref)))
+        steady = (t >= start) & (t <= end)
+        if np.any(steady):
+            tw, ew = t[steady], error[steady]
+            squares += np.trapezoid(ew**2, tw)
+            low, high = min(low, np.min(ew)), max(high, np.max(ew))
+            inside += np.count_nonzero(steady[block.new :])
+            first = tw[0] if first is None else first
+            last = tw[-1]
+    if inside < 2:
+        raise ValueError(f"window {window!r} selects {inside} sample(s); at least 2 are needed")
+    scale = max(scale, 1e-12)
+    t0, t1 = result.span
     tracking = (
-        m.integral_absolute_error(t, error) / ((t[-1] - t[0]) * scale)
-        + m.error_stats(t, error, window).rms / scale
-        + 0.5 * float(np.ptp(error[steady])) / scale
+        iae / ((t1 - t0) * scale)
+        + float(np.sqrt(squares / (last - first))) / scale
+        + 0.5 * float(high - low) / scale
     )
-    chatter = m.total_variation_rate(t, result["iq_ref_A"]) / max_current_A
+    chatter = float(variation / (t1 - t0)) / max_current_A
     return tracking, chatter
 
 
@@ -230,32 +249,46 @@ def cost_window(result) -> tuple[float, float]:
     command, else the last STEADY_FRACTION of the run before its load step, as the step
     metrics' steady-state error."""
     if experiment_of(result).quantity == "rudder":
-        return steady_window(result.t)
+        return steady_window(result.span[1])
     t_end = _load_window(result)[1]
-    return (t_end - STEADY_FRACTION * (t_end - result.t[0]), t_end - 1e-12)
-
-
-def _row_period(t: np.ndarray) -> float:
-    """The recording period (s): the time each recorded row stands for."""
-    return float(t[1] - t[0]) if t.size > 1 else 0.0
+    return (t_end - STEADY_FRACTION * (t_end - result.span[0]), t_end - 1e-12)
 
 
 def limit_metrics(result) -> dict:
-    """Time (s) the drive spent at each limit and, with end stops, in contact with them."""
-    t = result.t
-    dt = _row_period(t)
+    """Time (s) the drive spent at each limit and, with end stops, in contact with them: counts
+    of recorded rows times the recording period, over the trace's blocks (Result.blocks)."""
+    flags, stops = "limit_flags" in result.columns, "end_stop_force_N" in result.columns
+    names = (
+        ("t_s",)
+        + (("limit_flags",) if flags else ())
+        + (("end_stop_force_N", "rudder_stop_torque_Nm") if stops else ())
+    )
+    saturated = dict.fromkeys((name for name, _ in LIMITS), 0)
+    force_rows = torque_rows = 0
+    peak_force = peak_torque = -np.inf
+    dt = None
+    for block in result.blocks(*names):
+        t, *columns = (column[block.new :] for column in block.columns)
+        if dt is None:  # the recording period: the time each recorded row stands for
+            dt = float(t[1] - t[0]) if t.size > 1 else 0.0
+        if flags:
+            bits = np.nan_to_num(columns.pop(0)).astype(np.int64)
+            for name, bit in LIMITS:
+                saturated[name] += np.count_nonzero(bits & bit)
+        if stops:
+            force, torque = np.abs(columns[0]), np.abs(columns[1])
+            force_rows += np.count_nonzero(force > 0.0)
+            torque_rows += np.count_nonzero(torque > 0.0)
+            peak_force, peak_torque = max(peak_force, force.max()), max(peak_torque, torque.max())
     out = {}
-    if "limit_flags" in result.columns:
-        flags = np.nan_to_num(result["limit_flags"]).astype(np.int64)
-        for name, bit in LIMITS:
-            out[f"{name}_saturation_time_s"] = float(np.count_nonzero(flags & bit)) * dt
-    if "end_stop_force_N" in result.columns:
-        force = np.abs(result["end_stop_force_N"])
-        torque = np.abs(result["rudder_stop_torque_Nm"])
-        out["end_stop_contact_time_s"] = float(np.count_nonzero(force > 0.0)) * dt
-        out["end_stop_peak_force_N"] = float(force.max())
-        out["rudder_stop_contact_time_s"] = float(np.count_nonzero(torque > 0.0)) * dt
-        out["rudder_stop_peak_torque_Nm"] = float(torque.max())
+    if flags:
+        for name, _ in LIMITS:
+            out[f"{name}_saturation_time_s"] = float(saturated[name]) * dt
+    if stops:
+        out["end_stop_contact_time_s"] = float(force_rows) * dt
+        out["end_stop_peak_force_N"] = float(peak_force)
+        out["rudder_stop_contact_time_s"] = float(torque_rows) * dt
+        out["rudder_stop_peak_torque_Nm"] = float(peak_torque)
     return out
 
 
@@ -296,33 +329,39 @@ def limits_crossed(result) -> dict:
       reports the contact).
     """
     experiment = experiment_of(result)
-    checks = []
+    checks = []  # (name, column, scale, limit: a number or a column, unit, what)
     if "motor_speed_rad_s" in result.columns:
-        speed = np.abs(result["motor_speed_rad_s"]) * RPM_PER_RAD_S
-        limit = experiment.max_speed_rpm
-        checks.append(("motor_speed", speed, limit, "rpm", "the motor's speed"))
+        speed_limit = experiment.max_speed_rpm
+        checks.append(("motor_speed", "motor_speed_rad_s", RPM_PER_RAD_S, speed_limit, "rpm",
+                       "the motor's speed"))  # fmt: skip
     if "iq_A" in result.columns and "current_limit_A" in result.columns:
-        current = np.abs(result["iq_A"])
-        limit = result["current_limit_A"]
-        checks.append(("current", current, limit, "A", "the q-axis current"))
+        checks.append(("current", "iq_A", 1.0, "current_limit_A", "A", "the q-axis current"))
     if experiment.stroke_mm is not None and "actuator_position_m" in result.columns:
-        travel = np.abs(result["actuator_position_m"]) * 1e3
         half = 0.5 * experiment.stroke_mm
-        checks.append(("rod_stroke", travel, half, "mm", "the rod's travel from mid stroke"))
-    out = {}
-    for name, value, limit, unit, what in checks:
-        over = np.flatnonzero(value > np.asarray(limit) * (1.0 + LIMIT_TOLERANCE))
-        if over.size:
-            at = int(over[np.argmax(value[over])])
-            out[name] = {
-                "peak": float(value[at]),
-                "peak_s": float(result.t[at]),
-                "limit": float(np.broadcast_to(limit, value.shape)[at]),
-                "unit": unit,
-                "first_s": float(result.t[over[0]]),
-                "what": what,
-            }
-    return out
+        checks.append(("rod_stroke", "actuator_position_m", 1e3, half, "mm",
+                       "the rod's travel from mid stroke"))  # fmt: skip
+    columns = ["t_s", *dict.fromkeys(c for check in checks for c in (check[1], check[3])
+                                     if isinstance(c, str))]  # fmt: skip
+    first, peak = {}, {}  # name -> when first past it; -> (the largest value, when, its limit)
+    for block in result.blocks(*columns):
+        read = dict(zip(columns, (column[block.new :] for column in block.columns), strict=True))
+        t = read["t_s"]
+        for name, column, scale, limit, _, _ in checks:
+            value = np.abs(read[column]) * scale
+            limit = read[limit] if isinstance(limit, str) else limit
+            over = np.flatnonzero(value > np.asarray(limit) * (1.0 + LIMIT_TOLERANCE))
+            if over.size:
+                first.setdefault(name, float(t[over[0]]))
+                at = int(over[np.argmax(value[over])])
+                if name not in peak or value[at] > peak[name][0]:
+                    limit_there = np.broadcast_to(limit, value.shape)[at]
+                    peak[name] = (float(value[at]), float(t[at]), float(limit_there))
+    return {
+        name: dict(zip(("peak", "peak_s", "limit"), peak[name], strict=True))
+        | {"unit": unit, "first_s": first[name], "what": what}
+        for name, _, _, _, unit, what in checks
+        if name in peak
+    }
 
 
 LIMIT_CAUSES = {
@@ -453,22 +492,31 @@ SINE_SIGNALS = {
 
 def sine_metrics(result, quantity: str = "speed") -> dict:
     """Sine of motor speed (rpm, Fig. 6) or of rod position (mm): the largest error, the phase
-    lag and the gain of the fundamental, and the load response."""
+    lag and the gain of the fundamental, and the load response. One pass over the trace's
+    blocks (Result.blocks): the fit takes them one by one (emasim.analysis.metrics.SineFit),
+    and the load response reads the rows from the load step to the reference's next reversal,
+    kept as the pass goes by them."""
     column, reference, scale, unit, floor = SINE_SIGNALS[quantity]
-    t = result.t
-    y = scale * result[column]
-    ref = scale * result[reference]
-    frequency = _sine_frequency(result)
-    track = m.sine_tracking(t, y, ref, frequency)
+    fit = m.SineFit(_sine_frequency(result))
+    t_load, _ = _load_window(result)
+    after, reversed_ = [], t_load is None
+    for block in result.blocks("t_s", column, reference):
+        t, y, ref = block.columns[0], scale * block.columns[1], scale * block.columns[2]
+        fit.add(t[block.new :], y[block.new :], ref[block.new :])
+        if not reversed_ and (after or t[-1] >= t_load):  # the rows from the last before it
+            start = block.new if after else int(np.searchsorted(t, t_load)) - 1
+            after.append((t[start:], y[start:], ref[start:]))
+            t_after, _, ref_after = (np.concatenate(part) for part in zip(*after, strict=True))
+            reversed_ = next_reversal(t_after, ref_after, t_load) < t_after[-1]
+    track = fit.tracking()
     out = {
         f"max_error_{unit}": track.max_abs_error,
         "phase_lag_deg": track.phase_lag_deg,
         "gain": track.gain,
     }
-    t_load, _ = _load_window(result)
     if t_load is not None:
-        t_end = next_reversal(t, ref, t_load)
-        out.update(load_response(t, y, ref, t_load, t_end, floor, unit))
+        t, y, ref = (np.concatenate(part) for part in zip(*after, strict=True))
+        out.update(load_response(t, y, ref, t_load, next_reversal(t, ref, t_load), floor, unit))
     return {k: float(v) for k, v in out.items()}
 
 
@@ -502,7 +550,7 @@ def with_true_figures(result, figures) -> dict:
 
 def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> dict:
     final = reference[-1]
-    steady = steady_window(t)
+    steady = steady_window(t[-1])
     error = m.error_stats(t, reference - angle, steady)
     rate_error = m.error_stats(t, reference_rate - rate, steady)
     chat = m.chattering(t, angle, steady)
@@ -527,7 +575,7 @@ def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> d
 
 def _rudder_sine_figures(result, t, angle, reference, rate, reference_rate) -> dict:
     frequency = _sine_frequency(result)
-    steady = steady_window(t)
+    steady = steady_window(t[-1])
     track = m.sine_tracking(t, angle, reference, frequency, steady)
     start = (t[0], t[0] + 1.0)
     first_second = m.window_mask(t, start)

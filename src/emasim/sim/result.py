@@ -111,6 +111,29 @@ class RunDescription:
         )
 
 
+@dataclass(frozen=True)
+class Block:
+    """Rows of some columns of a trace (:meth:`Result.blocks`): ``columns``, one array per
+    column asked for; ``new``, the index in the block of its first row not in the block before
+    (0 or 1)."""
+
+    new: int
+    columns: tuple[np.ndarray, ...]
+
+
+def seamed_blocks(groups):
+    """:class:`Block` after Block of ``groups`` (each a list of columns' arrays, of one row
+    group): each block after the first begins with the last row of the block before, so that
+    a difference or a trapezoid across the seam is counted once; ``Block.new`` is where its
+    own rows begin. One group is one Block of its arrays as they are."""
+    last = None
+    for group in groups:
+        yield (
+            Block(0, tuple(group)) if last is None else Block(1, tuple(map(np.append, last, group)))
+        )
+        last = [column[-1] for column in group]
+
+
 @dataclass
 class Result:
     """Traces of one run. ``result["motor_speed_rad_s"]`` returns a column as an array;
@@ -134,6 +157,21 @@ class Result:
         if isinstance(self.data, ParquetTraces):
             return self.data.column(index)
         return self.data[:, index]
+
+    def blocks(self, *names: str):
+        """The columns ``names``, a block of rows at a time (:func:`seamed_blocks`): a spooled
+        trace's row groups, an in-memory trace in one block."""
+        if isinstance(self.data, ParquetTraces):
+            return seamed_blocks(self.data.column_groups([self.columns.index(n) for n in names]))
+        return seamed_blocks([[self[name] for name in names]])
+
+    @property
+    def span(self) -> tuple[float, float]:
+        """The first and the last sample time (s), read without reading every row."""
+        if isinstance(self.data, ParquetTraces):
+            return self.data.span()
+        t = self.t
+        return float(t[0]), float(t[-1])
 
     @property
     def outer_loop(self) -> str:

@@ -12,29 +12,32 @@ a time into its own array, so reading one costs that column and one row group, n
 whole trace; saving copies the file's bytes as they are. A saved result folder whose
 ``result.parquet`` is larger than SPOOL_BYTES is read back the same way.
 
-SPOOL_BYTES is 32 MiB, set by the memory it bounds, not by read speed: a run then holds one
-row group (32 MiB) beside the ~210 MB that importing emasim and its compiled core takes
-(docs/speed.md), well inside the 600 MB a 1000 s run at 10 kHz must stay under (issue 30).
-Parquet's own advice, row groups of 512 MiB to 1 GiB (parquet.apache.org, "Configurations"),
-is for sequential reads on HDFS and would hold most of such a run in memory; pyarrow writes
-1 Mi rows per group by default, 8 MiB of each float64 column, the same order as here. A trace
-of up to 32 MiB (about 14 s of all 24 columns at 10 kHz) stays in memory as before, so short
-runs pay no file input and output.
+SPOOL_BYTES is 32 MiB, set by the memory it bounds, not by read speed: a run holds one row
+group beside what importing emasim and its compiled core take (docs/speed.md's baseline),
+well inside the 600 MB a 1000 s run at 10 kHz must stay under (issue 30). Parquet's own
+advice, row groups of 512 MiB to 1 GiB (parquet.apache.org, "Configurations"), is for
+sequential reads on HDFS and would hold most of such a run in memory; pyarrow writes 1 Mi
+rows per group by default, 8 MiB of each float64 column, the same order as here. A trace of
+up to 32 MiB (32 MiB / (8 bytes x its columns) rows: 14 s of speed-sine's 29 columns at
+10 kHz) stays in memory as before, so short runs pay no file input and output.
 """
 
+import contextlib
 import os
 import shutil
 import tempfile
+import weakref
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from ..errors import OutputError
+
 SPOOL_BYTES = 32 * 2**20
 # how emasim writes every Parquet trace: Snappy-compressed (pyarrow's default) and without
-# dictionary encoding, which samples of a float signal, nearly all distinct, never repeat
-# enough to use (measured on 1e6 rows of speed-sine: 175 against 178 MB, written in 0.5
-# against 2.6 s)
+# dictionary encoding, which the samples of a float signal, nearly all distinct, cannot use:
+# on speed-sine's trace it made the file no smaller and took most of the write's time
 PARQUET_OPTIONS = {"use_dictionary": False}
 
 
@@ -57,24 +60,40 @@ def arrow_table(names, columns) -> pa.Table:
 
 
 class TraceSpool:
-    """A temporary Parquet file that a run's trace is appended to, one row group at a time."""
+    """A temporary Parquet file that a run's trace is appended to, one row group at a time.
+    A write that fails (a full disk) is one line naming the folder and what to change."""
 
     def __init__(self, names: tuple[str, ...]):
         self.names = names
         self.handle = tempfile.TemporaryFile(prefix="emasim-trace-")
         schema = pa.schema([(name, pa.float64()) for name in names])
-        self._writer = pq.ParquetWriter(self.handle, schema, **PARQUET_OPTIONS)
+        with _writing():
+            self._writer = pq.ParquetWriter(self.handle, schema, **PARQUET_OPTIONS)
 
     def append(self, block: np.ndarray) -> None:
         """Append ``block`` (one row per column, as the engine records it) as a row group."""
         if block.shape[1]:
             table = arrow_table(self.names, block)
-            self._writer.write_table(table, row_group_size=block.shape[1])
+            with _writing():
+                self._writer.write_table(table, row_group_size=block.shape[1])
 
     def finish(self) -> "ParquetTraces":
         """Close the Parquet file (its footer written) and return it to be read."""
-        self._writer.close()
+        with _writing():
+            self._writer.close()
         return ParquetTraces(self.handle)
+
+
+@contextlib.contextmanager
+def _writing():
+    try:
+        yield
+    except OSError as err:
+        raise OutputError(
+            f"the run's trace, streamed to a temporary file in {tempfile.gettempdir()}: "
+            f"cannot write ({err.strerror or err}); set TMPDIR to a folder with room, or "
+            "record less (solver.record_period_s, solver.record_signals)"
+        ) from None
 
 
 class ParquetTraces:
@@ -85,6 +104,7 @@ class ParquetTraces:
 
     def __init__(self, handle):
         self.handle = handle
+        weakref.finalize(self, handle.close)  # the file goes with the traces that read it
         self._file = pq.ParquetFile(handle)
         self.columns = tuple(self._file.schema_arrow.names)
         self.shape = (self._file.metadata.num_rows, len(self.columns))
@@ -97,17 +117,29 @@ class ParquetTraces:
     def column(self, index: int) -> np.ndarray:
         out = np.empty(self.shape[0])
         start = 0
-        for group in range(self._file.num_row_groups):
-            values = self._file.read_row_group(group, columns=[self.columns[index]]).column(0)
-            out[start : start + len(values)] = values.to_numpy()
+        for (values,) in self.column_groups([index]):
+            out[start : start + len(values)] = values
             start += len(values)
         return out
 
+    def column_groups(self, indices: list[int]):
+        """Each row group as a list of float64 arrays, one per column at ``indices``, in order."""
+        names = [self.columns[i] for i in indices]
+        for group in range(self._file.num_row_groups):
+            yield [c.to_numpy() for c in self._file.read_row_group(group, columns=names).columns]
+
     def row_groups(self):
         """Each row group as a (rows, columns) float64 array, in order (a CSV is written so)."""
-        for group in range(self._file.num_row_groups):
-            table = self._file.read_row_group(group)
-            yield np.column_stack([c.to_numpy() for c in table.columns])
+        for columns in self.column_groups(list(range(self.shape[1]))):
+            yield np.column_stack(columns)
+
+    def span(self) -> tuple[float, float]:
+        """The first and the last value of the first column (a trace's time, t_s): two row
+        groups read, not the file."""
+        index = self._file.num_row_groups - 1
+        first = self._file.read_row_group(0, columns=[self.columns[0]]).column(0)
+        last = self._file.read_row_group(index, columns=[self.columns[0]]).column(0)
+        return float(first[0].as_py()), float(last[-1].as_py())
 
     def copy_to(self, handle) -> None:
         """Write the Parquet file's bytes, as they are, to the binary ``handle``."""
