@@ -368,6 +368,30 @@ def test_speed_sine_offset_under_load_is_not_recovered():
     assert out["load_steady_error_mean_rpm"] == pytest.approx(2.7, rel=1e-9)
 
 
+def test_a_sine_that_never_reverses_is_judged_to_the_end_of_the_run():
+    """Offset above its amplitude, the reference keeps its sign: the load's interval runs to
+    the end, so the 8 rpm spike at 1 s is in it, and the error is back within the 3 rpm band
+    only when the spike ends, at 1.02 s."""
+    t = grid(SINE_RUN, DT)
+    ref = 2000.0 + 1000.0 * np.sin(2 * np.pi * SINE_F * t)
+    e = load_error(t, T_LOAD, 30.0, 0.01, 0.5) - np.where((t > 1.0 + 1e-9) & (t < 1.02), 8.0, 0.0)
+    result = FakeResult(
+        t, sine_scenario(T_LOAD), motor_speed_rad_s=RPM * (ref + e), speed_ref_rad_s=RPM * ref
+    )
+    out = r.sine_metrics(result)
+    assert out["load_dip_rpm"] == pytest.approx(-30.0, rel=1e-9)
+    assert out["load_recovery_time_s"] == pytest.approx(1.02 - T_LOAD, abs=DT)
+    # steady window: the last STEADY_FRACTION of [0.4, 3.0], where the error is the offset
+    assert out["load_steady_error_mean_rpm"] == pytest.approx(0.5, rel=1e-6)
+
+
+def test_a_tuning_cost_of_a_non_finite_trace_is_refused():
+    result = speed_step_result(dip=50.0, tau_r=0.02)
+    result._columns["measured_speed_rad_s"][5000] = np.nan
+    with pytest.raises(ValueError, match="error must contain only finite values"):
+        r.tuning_terms(result, MAX_CURRENT_A)
+
+
 # --------------------------------------------------------------------------- bench step
 
 BENCH_TAU = 0.1  # s
@@ -548,6 +572,23 @@ def test_limit_metrics_and_warnings():
     # a plant without stops or flags reports neither
     assert r.limit_metrics(FakeResult(t, None)) == {}
     assert r.run_warnings({}) == []
+
+
+def test_limit_times_when_every_block_holds_one_row(monkeypatch):
+    """The recording period comes from the first two rows, across a seam if need be."""
+    monkeypatch.setattr(FakeResult, "block_rows", 1)
+    t = grid(0.1, 1e-3)
+    flags = np.where(t < 0.05, LIMIT_CURRENT, 0)
+    out = r.limit_metrics(FakeResult(t, {}, limit_flags=flags))
+    assert out["current_saturation_time_s"] == pytest.approx(0.050, rel=1e-9)
+
+
+def test_a_non_finite_stop_force_is_a_non_finite_peak():
+    t = grid(1.0, 1e-3)
+    force, torque = np.zeros(t.size), np.zeros(t.size)
+    force[700] = np.nan
+    result = FakeResult(t, {}, end_stop_force_N=force, rudder_stop_torque_Nm=torque)
+    assert math.isnan(r.limit_metrics(result)["end_stop_peak_force_N"])
 
 
 def test_run_metrics_dispatch_and_limits():

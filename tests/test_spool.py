@@ -71,6 +71,21 @@ def test_a_streamed_trace_equals_the_whole_one_bit_for_bit(small_groups, record_
         assert np.array_equal(streamed[name], whole[name], equal_nan=True), name
 
 
+def test_a_streamed_run_ends_with_its_result_and_one_read_as_it_goes_stays_in_memory(
+    small_groups,
+):
+    setup = _scenario().setup()
+    run = EngineRun(setup)
+    run.advance(500)
+    run.result()
+    with pytest.raises(RuntimeError, match=r"EngineRun.result\(\) ends a streamed run"):
+        run.advance(1000)
+    kept = EngineRun(setup, stream=False)  # a caller that reads the trace as the run goes
+    kept.advance(500)
+    assert kept.spool is None and kept.run.data.trace.shape[1] == setup.recorded_rows
+    assert isinstance(kept.result().data, np.ndarray)
+
+
 def test_a_trace_within_one_group_stays_in_memory():
     setup = _scenario().setup()
     assert setup.recorded_rows <= spool.chunk_rows(len(setup.kept_columns()))

@@ -220,6 +220,9 @@ def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
     for block in result.blocks("t_s", *names, "iq_ref_A"):
         t, reference, output, iq_ref = block.columns
         error = reference - output
+        for name, values in (("error", error), ("iq_ref_A", iq_ref)):
+            if not np.all(np.isfinite(values)):
+                raise ValueError(f"{name} must contain only finite values")
         scale = max(scale, float(np.max(np.abs(reference))))
         iae += np.trapezoid(np.abs(error), t)
         variation += np.sum(np.abs(np.diff(iq_ref)))
@@ -228,7 +231,7 @@ def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
             tw, ew = t[steady], error[steady]
             squares += np.trapezoid(ew**2, tw)
             low, high = min(low, np.min(ew)), max(high, np.max(ew))
-            inside += np.count_nonzero(steady[block.new :])
+            inside += np.count_nonzero(steady[block.own_from :])
             first = tw[0] if first is None else first
             last = tw[-1]
     if inside < 2:
@@ -266,11 +269,11 @@ def limit_metrics(result) -> dict:
     saturated = dict.fromkeys((name for name, _ in LIMITS), 0)
     force_rows = torque_rows = 0
     peak_force = peak_torque = -np.inf
-    dt = None
+    dt = 0.0  # the recording period, the time each recorded row stands for: the first two rows'
     for block in result.blocks(*names):
-        t, *columns = (column[block.new :] for column in block.columns)
-        if dt is None:  # the recording period: the time each recorded row stands for
-            dt = float(t[1] - t[0]) if t.size > 1 else 0.0
+        if not dt and block.columns[0].size > 1:
+            dt = float(block.columns[0][1] - block.columns[0][0])
+        t, *columns = (column[block.own_from :] for column in block.columns)
         if flags:
             bits = np.nan_to_num(columns.pop(0)).astype(np.int64)
             for name, bit in LIMITS:
@@ -279,7 +282,8 @@ def limit_metrics(result) -> dict:
             force, torque = np.abs(columns[0]), np.abs(columns[1])
             force_rows += np.count_nonzero(force > 0.0)
             torque_rows += np.count_nonzero(torque > 0.0)
-            peak_force, peak_torque = max(peak_force, force.max()), max(peak_torque, torque.max())
+            peak_force = np.max([peak_force, force.max()])  # NaN stays NaN
+            peak_torque = np.max([peak_torque, torque.max()])
     out = {}
     if flags:
         for name, _ in LIMITS:
@@ -344,11 +348,11 @@ def limits_crossed(result) -> dict:
                                      if isinstance(c, str))]  # fmt: skip
     first, peak = {}, {}  # name -> when first past it; -> (the largest value, when, its limit)
     for block in result.blocks(*columns):
-        read = dict(zip(columns, (column[block.new :] for column in block.columns), strict=True))
+        read = dict(zip(columns, (c[block.own_from :] for c in block.columns), strict=True))
         t = read["t_s"]
-        for name, column, scale, limit, _, _ in checks:
+        for name, column, scale, given, _, _ in checks:
             value = np.abs(read[column]) * scale
-            limit = read[limit] if isinstance(limit, str) else limit
+            limit = read[given] if isinstance(given, str) else given
             over = np.flatnonzero(value > np.asarray(limit) * (1.0 + LIMIT_TOLERANCE))
             if over.size:
                 first.setdefault(name, float(t[over[0]]))
@@ -385,11 +389,11 @@ def limit_warnings(limits: dict) -> list[str]:
 
 def _load_window(result) -> tuple[float | None, float]:
     """(load step time if inside the run, end of the interval before it)."""
-    t = result.t
+    t_first, t_last = result.span
     t_load = experiment_of(result).load_step_s
-    if t_load is not None and not t[0] < t_load < t[-1]:
+    if t_load is not None and not t_first < t_load < t_last:
         t_load = None  # the load comes after the end of the run
-    return t_load, (t_load if t_load is not None else t[-1])
+    return t_load, (t_load if t_load is not None else t_last)
 
 
 def next_reversal(t: np.ndarray, reference: np.ndarray, t_from: float) -> float:
@@ -499,15 +503,12 @@ def sine_metrics(result, quantity: str = "speed") -> dict:
     column, reference, scale, unit, floor = SINE_SIGNALS[quantity]
     fit = m.SineFit(_sine_frequency(result))
     t_load, _ = _load_window(result)
-    after, reversed_ = [], t_load is None
+    window = _LoadWindow(t_load)
     for block in result.blocks("t_s", column, reference):
         t, y, ref = block.columns[0], scale * block.columns[1], scale * block.columns[2]
-        fit.add(t[block.new :], y[block.new :], ref[block.new :])
-        if not reversed_ and (after or t[-1] >= t_load):  # the rows from the last before it
-            start = block.new if after else int(np.searchsorted(t, t_load)) - 1
-            after.append((t[start:], y[start:], ref[start:]))
-            t_after, _, ref_after = (np.concatenate(part) for part in zip(*after, strict=True))
-            reversed_ = next_reversal(t_after, ref_after, t_load) < t_after[-1]
+        own = block.own_from
+        fit.add(t[own:], y[own:], ref[own:])
+        window.add(t, y, ref, own)
     track = fit.tracking()
     out = {
         f"max_error_{unit}": track.max_abs_error,
@@ -515,9 +516,38 @@ def sine_metrics(result, quantity: str = "speed") -> dict:
         "gain": track.gain,
     }
     if t_load is not None:
-        t, y, ref = (np.concatenate(part) for part in zip(*after, strict=True))
+        t, y, ref = window.rows()
         out.update(load_response(t, y, ref, t_load, next_reversal(t, ref, t_load), floor, unit))
     return {k: float(v) for k, v in out.items()}
+
+
+class _LoadWindow:
+    """The rows a sine's load response reads, kept block by block as a pass goes by them: from
+    the last row before the load step ``t_load`` (None: none) up to the first row where the
+    reference has the sign opposite to its first nonzero sign from the load step on (its next
+    reversal, :func:`next_reversal`), or to the end of the run if it keeps its sign."""
+
+    def __init__(self, t_load: float | None):
+        self.t_load, self.parts, self.sign, self.done = t_load, [], 0.0, t_load is None
+
+    def add(self, t, y, ref, own_from: int) -> None:
+        """Keep what is wanted of a block (its own rows from ``own_from`` on)."""
+        if self.done or t[-1] < self.t_load:
+            return
+        # the first block that reaches the load step begins with the last row before it
+        start = own_from if self.parts else int(np.searchsorted(t, self.t_load)) - 1
+        signs = np.sign(ref[start:])
+        signs[t[start:] < self.t_load] = 0.0
+        if not self.sign and np.any(signs):
+            self.sign = signs[np.flatnonzero(signs)[0]]
+        flipped = np.flatnonzero(signs == -self.sign) if self.sign else []
+        stop = start + flipped[0] + 1 if len(flipped) else t.size
+        self.parts.append((t[start:stop], y[start:stop], ref[start:stop]))
+        self.done = len(flipped) > 0
+
+    def rows(self):
+        """(t, y, ref) of the rows kept."""
+        return (np.concatenate(part) for part in zip(*self.parts, strict=True))
 
 
 def bench_step_metrics(result) -> dict:

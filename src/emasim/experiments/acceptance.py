@@ -446,7 +446,7 @@ def measure_stall(scenario, drive, battery) -> dict:
     """The rod force at which the output has been pushed back stall_deflection_mm (N), the run
     stopped there (past the stall the load drives the motor away); None if it held."""
     setup = scenario.setup()
-    run = EngineRun(setup)
+    run = EngineRun(setup, stream=False)  # its trace is read as the run goes
     chunk = max(1, round(STALL_CHUNK_S / setup.sample_period_s))
     limit = battery.stall_deflection_mm * MM
     start = scenario.load.rod_force_N[0].start_s

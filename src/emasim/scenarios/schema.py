@@ -359,7 +359,7 @@ class Scenario(Strict):
     )
     description: str = Field(default="", max_length=10_000)
     # at most a day: a run's trace streams to disk (emasim.sim.spool), so memory sets no limit;
-    # a day at 10 kHz with every column is about 150 GB of trace, on disk twice while it is saved
+    # its recorded rows are held to MAX_RECORDED_ROWS (a day at 1 kHz; 10 000 s at 10 kHz)
     duration_s: float = Field(gt=0, le=86_400)
     seed: int = Field(default=0, ge=0, le=2**32 - 1)
     solver: Solver = Solver()

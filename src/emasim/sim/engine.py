@@ -340,17 +340,19 @@ class EngineRun:
     ``x`` is the plant state in between (a co-simulation master reads and feeds it).
     A trace larger than emasim.sim.spool.SPOOL_BYTES is recorded one row group at a time and
     appended to a :class:`~emasim.sim.spool.TraceSpool` as each fills: memory holds one row
-    group of it, whatever the duration.
+    group of it, whatever the duration (``stream=False`` keeps it whole in memory, for a
+    caller that reads it while the run goes on).
     """
 
-    def __init__(self, setup: Setup, keep_elements: tuple[str, ...] = ()):
+    def __init__(self, setup: Setup, keep_elements: tuple[str, ...] = (), stream: bool = True):
         self.setup = setup
         self.keep_elements = keep_elements
         self.compile_s = load_compiled()
         columns = tuple(setup.kept_columns(keep_elements))
         group = chunk_rows(len(columns))
-        self.spool = TraceSpool(columns) if setup.recorded_rows > group else None
-        self.run = setup.start(keep_elements, rows=group if self.spool else None)
+        streamed = stream and setup.recorded_rows > group
+        self.spool = TraceSpool(columns) if streamed else None
+        self.run = setup.start(keep_elements, rows=group if streamed else None)
         self.tick = 0
         self.wall_s = 0.0
 

@@ -114,18 +114,18 @@ class RunDescription:
 @dataclass(frozen=True)
 class Block:
     """Rows of some columns of a trace (:meth:`Result.blocks`): ``columns``, one array per
-    column asked for; ``new``, the index in the block of its first row not in the block before
-    (0 or 1)."""
+    column asked for; ``own_from``, the index in the block of its first row that the block
+    before did not hold (0 for the first block, 1 after: the seam row)."""
 
-    new: int
+    own_from: int
     columns: tuple[np.ndarray, ...]
 
 
 def seamed_blocks(groups):
     """:class:`Block` after Block of ``groups`` (each a list of columns' arrays, of one row
     group): each block after the first begins with the last row of the block before, so that
-    a difference or a trapezoid across the seam is counted once; ``Block.new`` is where its
-    own rows begin. One group is one Block of its arrays as they are."""
+    a difference or a trapezoid across the seam is counted once; ``Block.own_from`` is where
+    its own rows begin. One group is one Block of its arrays as they are."""
     last = None
     for group in groups:
         yield (
@@ -451,8 +451,9 @@ def check_trace_format(trace_format: str) -> None:
 
 
 def _drawer(figures, result=None):
-    """``figures``, or one that draws in this process: by default, and for a ``result`` (a
-    Result or Comparison) with a spooled trace, which another process would get whole."""
+    """``figures``, or one that draws in this process: by default, and, whatever ``figures``
+    is, for a ``result`` (a Result or Comparison) with a spooled trace, which another process
+    would be handed whole."""
     runs = getattr(result, "results", {"": result}).values()
     if figures is not None and not any(
         isinstance(getattr(run, "data", None), ParquetTraces) for run in runs
@@ -521,7 +522,9 @@ def _save(result, folder, plot, force, kind, trace_format, figures, words):
                         hints=hints)  # fmt: skip
 
 
-def read_traces(folder: Path, lazy: bool = False) -> tuple[tuple[str, ...], np.ndarray]:
+def read_traces(
+    folder: Path, lazy: bool = False
+) -> tuple[tuple[str, ...], np.ndarray | ParquetTraces]:
     """(column names, float64 data) of the traces a run folder holds, in any TRACE_FORMATS;
     ``lazy``: a Parquet file larger than SPOOL_BYTES as :class:`ParquetTraces` (read by
     column), not in memory."""

@@ -72,6 +72,8 @@ class TraceSpool:
 
     def append(self, block: np.ndarray) -> None:
         """Append ``block`` (one row per column, as the engine records it) as a row group."""
+        if not self._writer.is_open:
+            raise RuntimeError("the trace's file is closed: EngineRun.result() ends a streamed run")
         if block.shape[1]:
             table = arrow_table(self.names, block)
             with _writing():
@@ -134,8 +136,8 @@ class ParquetTraces:
             yield np.column_stack(columns)
 
     def span(self) -> tuple[float, float]:
-        """The first and the last value of the first column (a trace's time, t_s): two row
-        groups read, not the file."""
+        """The first and the last value of the first column (a trace's first column is its
+        time, t_s): two row groups read, not the file."""
         index = self._file.num_row_groups - 1
         first = self._file.read_row_group(0, columns=[self.columns[0]]).column(0)
         last = self._file.read_row_group(index, columns=[self.columns[0]]).column(0)
