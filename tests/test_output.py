@@ -551,6 +551,52 @@ def test_a_build_killed_between_opening_and_journalling_keeps_its_folder(tmp_pat
     assert sorted(p.name for p in build.iterdir()) == ["result.parquet"]
 
 
+# A child process builds, and SIGKILLs itself inside new_file at the step named (argv): just
+# before the journal line is written, or just before the unnamed file is linked to its name;
+# "named" makes new_file take its way for a system without unnamed files.
+KILLED_IN_NEW_FILE = """
+import os, signal, sys
+from pathlib import Path
+from emasim import output
+from emasim.manifest import write_marker
+root, step, way = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
+build = root / f".run.tmp-{os.getpid()}-abcdef12"
+build.mkdir()
+write_marker(build, "run")
+output.write_new(build / "metrics.json", "{}")
+if way == "named":
+    output._unnamed = lambda folder: None
+def killed(*args):
+    os.kill(os.getpid(), signal.SIGKILL)
+setattr(output, {"journal": "_journal", "link": "_LINKAT"}[step], killed)
+output.write_new(build / "result.parquet", b"x")
+"""
+
+
+@pytest.mark.parametrize(
+    ("step", "way", "kept"),
+    [("journal", "unnamed", []), ("link", "unnamed", []), ("journal", "named", ["result.parquet"])],
+)
+def test_a_build_killed_inside_new_file_leaves_only_what_it_listed(tmp_path, step, way, kept):
+    """Made without a name, a file exists under its name only once it is listed: a build
+    killed at any step of new_file loses everything at the next write there. Where a file is
+    named first (no unnamed files on that system), a kill before its journal line leaves it
+    unlisted, and it stays with its folder (the safe way round)."""
+    if way == "unnamed":
+        fd = output._unnamed(tmp_path)
+        if fd is None:
+            pytest.skip("this system makes no unnamed files (O_TMPFILE)")
+        os.close(fd)
+    child = subprocess.run([sys.executable, "-c", KILLED_IN_NEW_FILE, str(tmp_path), step, way])
+    assert child.returncode == -9  # SIGKILL, at that step
+    [build] = tmp_path.iterdir()
+    assert clean_leftovers(tmp_path) == ([] if kept else [build])
+    if kept:
+        assert sorted(p.name for p in build.iterdir()) == kept
+    else:
+        assert not os.path.lexists(build)
+
+
 def test_a_file_whose_journal_line_cannot_be_written_is_removed(tmp_path):
     """new_file journals a file after opening it: where the line cannot be written (a full
     disk; here the journal's name is taken by a folder), the file just made goes at once, so

@@ -11,10 +11,12 @@
   (anything foreign: put back, refused), renames the new one in, deletes the old one's own
   files. A file is hard-linked into place, or with ``force`` checked again under the lock and
   replaced: a file saved there between the two is the race left.
-* Others may put files into a build, so :func:`new_file` opens a new name only (O_EXCL), then
-  journals ``dev:ino name``: a name is emasim's while it keeps that inode. An error between the
-  two removes the file; a kill leaves it unlisted, which keeps the debris (the safe way round:
-  a name journalled before its open may be a user's). Debris, such a folder whose process is
+* Others may put files into a build, so :func:`new_file` makes a file without a name
+  (O_TMPFILE), journals ``dev:ino name``, then links it to the name, never an existing one: a
+  name is emasim's while it keeps that inode, and a kill leaves no file the journal lacks.
+  Without O_TMPFILE it opens the name (O_EXCL) and journals after: a kill between leaves the
+  file unlisted, which keeps the debris (the safe way round: a name journalled before its open
+  may be a user's). Debris, such a folder whose process is
   gone, marked or empty, loses at the next write there only its proven files, marker, journal
   and empty folders. No link is ever followed; modes follow the umask. Users: docs/guide.md.
 """
@@ -37,7 +39,9 @@ CLI_HINTS = ("add --force to replace it", "or leave --out out for a fresh folder
 _DEBRIS = re.compile(r"^\..+\.(?P<kind>tmp|old)-(?P<pid>\d+)-[0-9a-f]{8}$")
 _TAKEN = "another process wrote it meanwhile; nothing was replaced"
 _LINE = "{0.st_dev}:{0.st_ino} {1}"  # a journal line: a file's inode, its name
-_RENAMEAT2 = getattr(ctypes.CDLL(None, use_errno=True), "renameat2", None)  # glibc >= 2.28
+_LIBC = ctypes.CDLL(None, use_errno=True)
+_RENAMEAT2 = getattr(_LIBC, "renameat2", None)  # glibc >= 2.28
+_LINKAT = getattr(_LIBC, "linkat", None)
 
 
 def _beside(path: Path, kind: str) -> Path:
@@ -100,21 +104,45 @@ def remove_own(folder: Path) -> bool:
 @contextlib.contextmanager
 def new_file(path: Path):
     """Yield a handle writing bytes to a new file: never an existing name, nor through a link.
-    In a build, its inode and name then go into the journal (one O_APPEND write), else it goes."""
+    In a build the file is made without a name (O_TMPFILE), journalled with its inode (one
+    O_APPEND write), then linked to its name (linkat, which replaces nothing): a kill at any
+    moment leaves no file the journal lacks. Where no unnamed file can be made (not Linux, a
+    file system without it), it is opened by name and journalled after; an error between
+    removes it, a kill leaves it unlisted (the debris then stays: the safe way round)."""
     path = Path(path).absolute()
     builds = (p for p in path.parents if (m := _DEBRIS.match(p.name)) and m["kind"] == "tmp")
-    with open(path, "xb") as handle:
+    build = next(builds, None)
+    fd = _unnamed(path.parent) if build else None
+    with os.fdopen(fd, "wb") if fd is not None else open(path, "xb") as handle:
         st = os.fstat(handle.fileno())
         try:
-            if build := next(builds, None):
-                line = _LINE.format(st, path.relative_to(build).as_posix())
-                with open(build / JOURNAL, "ab", buffering=0) as journal:
-                    journal.write(os.fsencode(f"{line}\n"))
-        except BaseException:  # a full disk, a Ctrl-C: the file, never listed, goes
-            if os.path.samestat(os.lstat(path), st):
+            if build:
+                _journal(build, _LINE.format(st, path.relative_to(build).as_posix()))
+            if fd is not None:  # -100: AT_FDCWD, 0x400: AT_SYMLINK_FOLLOW
+                if _LINKAT(-100, f"/proc/self/fd/{fd}".encode(), -100, os.fsencode(path), 0x400):
+                    code = ctypes.get_errno()  # EEXIST: a FileExistsError, as open's "x"
+                    raise OSError(code, os.strerror(code), os.fspath(path))
+        except BaseException:  # a full disk, a Ctrl-C: a named file, never listed, goes
+            if fd is None and os.path.samestat(os.lstat(path), st):
                 os.unlink(path)
             raise
         yield handle
+
+
+def _unnamed(folder: Path) -> int | None:
+    """A descriptor of a new file without a name in ``folder``, where it can be made and then
+    named (linkat through /proc/self/fd); else None."""
+    if _LINKAT is None or not os.path.isdir("/proc/self/fd"):
+        return None
+    try:
+        return os.open(folder, os.O_TMPFILE | os.O_WRONLY, 0o666)  # the umask applies
+    except (AttributeError, OSError):  # no O_TMPFILE here, or not on this file system
+        return None
+
+
+def _journal(build: Path, line: str) -> None:
+    with open(build / JOURNAL, "ab", buffering=0) as journal:
+        journal.write(os.fsencode(f"{line}\n"))
 
 
 def write_new(path: Path, content: str | bytes) -> None:
