@@ -162,32 +162,32 @@ def test_a_controllers_design_check_is_one_warning_line(tmp_path):
     assert "UserWarning" not in result.output and "warnings.warn" not in result.output
 
 
-def test_on_a_fake_clock_the_compile_is_never_counted_as_simulation_time(monkeypatch):
-    """A comparison loads (or compiles) the engine and its laws before its timer starts. On a
-    clock that moves only while the engine loads (no wall time is read), the load is the
-    meta's compile_s and none of it is in simulation_wall_s."""
-    import types
-
+def test_a_comparison_loads_the_engine_and_every_law_before_its_timed_runs(monkeypatch):
+    """A comparison's simulation time is its runs' (``run_all``, inside its timer); the engine
+    and every set's laws are loaded before the timer starts (``load_compiled``, the meta's
+    compile_s), so the runs find nothing left to load, and no compile is ever counted as
+    simulation time. Checked on emptied caches: what the runs would load is recorded, no
+    clock is read."""
     from emasim.experiments import batch
     from emasim.scenarios.loader import load_scenario
     from emasim.sim import engine
+    from emasim.sim.core import LawAddress
 
-    clock = [0.0]
-    fake_time = types.SimpleNamespace(perf_counter=lambda: clock[0])
-    load_s = 100.0
+    monkeypatch.setattr(LawAddress, "_cache", {})
+    monkeypatch.setattr(engine.run_ticks, "_dispatcher", None)
+    when_timed = []
+    real_run_all = batch.run_all
 
-    def slow_load():
-        clock[0] += load_s
-        return load_s
+    def timed_runs(*args, **kwargs):
+        when_timed.append((engine.run_ticks._dispatcher is not None, set(LawAddress._cache)))
+        return real_run_all(*args, **kwargs)
 
-    monkeypatch.setattr(batch, "time", fake_time)
-    monkeypatch.setattr(engine, "time", fake_time)
-    monkeypatch.setattr(batch, "load_engine", slow_load)
+    monkeypatch.setattr(batch, "run_all", timed_runs)
     comparison = batch.run_comparison(load_scenario("speed-step", settings=["duration_s=0.01"]))
-    assert comparison.meta["compile_s"] == load_s
-    assert comparison.meta["simulation_wall_s"] == 0.0
-    for result in comparison.results.values():
-        assert result.meta["compile_s"] == 0.0 and result.meta["simulation_wall_s"] == 0.0
+    [(engine_loaded, laws_loaded)] = when_timed
+    assert engine_loaded and laws_loaded  # loaded before the timed runs began
+    assert set(LawAddress._cache) == laws_loaded  # and the runs loaded no law of their own
+    assert len(comparison.results) == 4
 
 
 def test_quiet_and_verbose_work_before_or_after_the_subcommand(tmp_path):
