@@ -806,7 +806,7 @@ def run_acceptance(
     chosen = list(labels or variants)
     store = battery_store(scenario, chosen, battery)
     start = time.perf_counter()
-    rows = store.run(client, progress)
+    rows = store.run(client, progress=progress)
     wall = time.perf_counter() - start
     store.require_ok(rows)
     values = [decoded(json.loads(store.read(job, MEASURED_FILE))) for job in store.jobs]

@@ -180,19 +180,11 @@ class Store:
             self._rows[row[RUN_ID]] = row
             self._table_current = False
 
-    def run(
-        self,
-        client=None,
-        progress: Callable[[int, int], None] | None = None,
-        trust_fmu: bool = False,
-        cluster: Callable | None = None,
-    ) -> dict[str, dict]:
-        """Open the store, run every job it has no finished run of, and return run_id -> row
-        of every job. ``client``: a ``dask.distributed.Client`` to run on, else the one
-        ``cluster()`` opens (a context manager; default: threads in this process).
-        ``progress(done, total)`` is called as runs finish."""
+    def run(self, client=None, **options) -> dict[str, dict]:
+        """Open the store, run every job it has no finished run of (:meth:`run_pending`, whose
+        ``options`` these are), and return run_id -> row of every job."""
         with self.opened():
-            return self.run_pending(client, progress, trust_fmu, cluster)
+            return self.run_pending(client, **options)
 
     @contextlib.contextmanager
     def opened(self):
@@ -213,9 +205,12 @@ class Store:
         cluster: Callable | None = None,
         inline: bool = False,
     ) -> dict[str, dict]:
-        """:meth:`run` in a store held by :meth:`opened`; ``inline``: the jobs one after
-        another in this process, without Dask (a few short runs, where a cluster would cost
-        more than they do)."""
+        """Run every job the store held by :meth:`opened` has no finished run of, and return
+        run_id -> row of every job. ``client``: a ``dask.distributed.Client`` to run on, else
+        the one ``cluster()`` opens (a context manager; default: threads in this process);
+        ``inline``: the jobs one after another in this process, without Dask (a few short
+        runs, where a cluster would cost more than they do). ``progress(done, total)`` is
+        called as runs finish."""
         from .. import numba_cache
         from .batch import dask_client, map_runs
 

@@ -284,8 +284,8 @@ def run_study(
     log_file = (folder / LOG_FILE, FAILURE_LOG)
     rows = store.run(
         client,
-        progress,
-        trust_fmu,
+        progress=progress,
+        trust_fmu=trust_fmu,
         cluster=lambda: dask_client(scheduler, workers, log_file=log_file),
     )
     study = Study(folder, store.frame(rows), plan)
