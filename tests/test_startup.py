@@ -86,3 +86,21 @@ def test_without_scipys_blas_on_disk_numba_checks_as_before():
         "assert 'scipy.linalg' in sys.modules\n"
     )
     assert "numba" in loaded_after(body).split(",")
+
+
+def test_the_program_freezes_the_collector_when_its_command_is_done(monkeypatch):
+    """``emasim`` (cli.program) ends its process with the collector frozen, so the shutdown's
+    final collections skip numba's objects; the command's exit code passes through unchanged."""
+    import gc
+
+    from emasim.cli import program
+
+    monkeypatch.setattr(sys, "argv", ["emasim", "run", "speed-step", "--set", "duration_ms=2"])
+    gc.unfreeze()
+    try:
+        with pytest.raises(SystemExit) as ended:
+            program()
+        assert ended.value.code == 2
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

@@ -1,5 +1,5 @@
 """``python -m emasim`` runs the command line."""
 
-from .cli import app
+from .cli import program
 
-app()
+program()
