@@ -420,3 +420,35 @@ def test_control_step_info_agrees_with_python_controls_step_info():
         assert ours[key] == pytest.approx(theirs[key], abs=slope), key
     assert ours["Overshoot"] == pytest.approx(theirs["Overshoot"], abs=100 * slope)
     assert ours["Undershoot"] == theirs["Undershoot"] == 0.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.sampled_from([-3.0, -2.0, -0.0, 0.0, 1.0, 2.0, 3.0]), min_size=1, max_size=12),
+    st.sampled_from([0.5, 1.0, 2.0, 2.5]),
+)
+def test_the_copy_free_magnitude_helpers_agree_with_abs(values, tol):
+    """_largest and _outside (which spare a long trace a copy of |v|) pick the same rows as
+    argmax |v| and |v| > tol, ties between +a and -a included."""
+    v = np.array(values)
+    assert m._largest(v) == int(np.argmax(np.abs(v)))
+    assert np.array_equal(m._outside(v, tol), np.flatnonzero(np.abs(v) > tol))
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 10.0), min_size=2, max_size=2),
+    st.integers(2, 40),
+)
+def test_a_window_selects_the_rows_its_mask_selects(edges, n):
+    """window_rows (a view of a window) holds exactly the rows t_start <= t <= t_end."""
+    t = np.linspace(0.0, 10.0, n)
+    window = (min(edges), max(edges))
+    expected = np.flatnonzero((t >= window[0]) & (t <= window[1]))
+    if expected.size < 2:
+        with pytest.raises(ValueError, match="at least 2 are needed"):
+            m.window_mask(t, window)
+        return
+    rows = m.window_rows(t, window)
+    assert np.array_equal(np.arange(t.size)[rows], expected)
+    assert np.array_equal(np.flatnonzero(m.window_mask(t, window)), expected)

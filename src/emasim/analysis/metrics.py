@@ -38,6 +38,7 @@ __all__ = [
     "step_info",
     "total_variation_rate",
     "window_mask",
+    "window_rows",
 ]
 
 Window = tuple[float, float] | None
@@ -101,7 +102,7 @@ def _samples(name: str, values: ArrayLike) -> np.ndarray:
 
 def _time(t: ArrayLike) -> np.ndarray:
     arr = _samples("t", t)
-    if np.any(np.diff(arr) <= 0.0):
+    if np.any(arr[1:] <= arr[:-1]):  # np.diff(arr) <= 0, without a copy of a long trace
         raise ValueError("t must be strictly increasing")
     return arr
 
@@ -174,27 +175,41 @@ def window_mask(t: ArrayLike, window: Window) -> np.ndarray:
         If the window is malformed or selects fewer than 2 samples.
     """
     t = _time(t)
+    mask = np.zeros(t.shape, dtype=bool)
+    mask[_window_rows(t, window)] = True
+    return mask
+
+
+def window_rows(t: ArrayLike, window: Window) -> slice:
+    """The samples of ``t`` inside a time window (:func:`window_mask`: the same arguments and
+    errors) as a slice of rows. They are contiguous, so the window of a long trace taken with
+    it is a view, never a copy."""
+    return _window_rows(_time(t), window)
+
+
+def _window_rows(t: np.ndarray, window: Window) -> slice:
+    """:func:`window_rows` of a ``t`` known to be valid."""
     if window is None:
-        return np.ones(t.shape, dtype=bool)
+        return slice(0, t.size)
     try:
         t_start, t_end = (float(edge) for edge in window)
     except (TypeError, ValueError):
         raise ValueError(f"window must be None or (t_start, t_end), got {window!r}") from None
     if not (np.isfinite(t_start) and np.isfinite(t_end) and t_start <= t_end):
         raise ValueError(f"window must be finite with t_start <= t_end, got {window!r}")
-    mask = (t >= t_start) & (t <= t_end)
-    if np.count_nonzero(mask) < 2:
+    rows = slice(int(np.searchsorted(t, t_start, "left")), int(np.searchsorted(t, t_end, "right")))
+    if rows.stop - rows.start < 2:
         raise ValueError(
-            f"window {window!r} selects {np.count_nonzero(mask)} sample(s) of t "
+            f"window {window!r} selects {rows.stop - rows.start} sample(s) of t "
             f"(t spans [{t[0]}, {t[-1]}]); at least 2 are needed"
         )
-    return mask
+    return rows
 
 
 def _windowed(t: np.ndarray, window: Window, *signals: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``t`` and each signal restricted to the samples inside ``window``."""
-    mask = window_mask(t, window)
-    return (t[mask], *(signal[mask] for signal in signals))
+    """``t`` and each signal restricted to the samples inside ``window``: views."""
+    rows = _window_rows(t, window)
+    return (t[rows], *(signal[rows] for signal in signals))
 
 
 def _crossing_time(t: np.ndarray, d: np.ndarray, k: int, level: float) -> float:
@@ -211,9 +226,23 @@ def _first_reach(t: np.ndarray, d: np.ndarray, level: float) -> float:
     return float(t[0]) if k == 0 else _crossing_time(t, d, k, level)
 
 
+def _outside(d: np.ndarray, tol: float) -> np.ndarray:
+    """The rows where ``|d| > tol`` (finite ``d``), without a copy of ``|d|``."""
+    return np.flatnonzero((d > tol) | (d < -tol))
+
+
+def _largest(v: np.ndarray) -> int:
+    """The first row of largest ``|v|`` (finite ``v``): ``argmax |v|``, from the first
+    largest and the first smallest value, without a copy of ``|v|``."""
+    high, low = int(np.argmax(v)), int(np.argmin(v))
+    if abs(v[high]) == abs(v[low]):
+        return min(high, low)
+    return high if abs(v[high]) > abs(v[low]) else low
+
+
 def _first_exit(t: np.ndarray, d: np.ndarray, tol: float) -> float:
     """First time at which ``|d| > tol`` (interpolated); ``nan`` if never."""
-    outside = np.flatnonzero(np.abs(d) > tol)
+    outside = _outside(d, tol)
     if outside.size == 0:
         return np.nan
     k = outside[0]
@@ -225,7 +254,7 @@ def _last_exit(t: np.ndarray, d: np.ndarray, tol: float) -> float:
 
     ``t[0]`` if ``d`` is always inside, ``nan`` if it is outside at the last sample.
     """
-    outside = np.flatnonzero(np.abs(d) > tol)
+    outside = _outside(d, tol)
     if outside.size == 0:
         return float(t[0])
     k = outside[-1]
@@ -248,7 +277,7 @@ def _residual(t: np.ndarray, y: np.ndarray, detrend: bool) -> np.ndarray:
         residual = y - basis @ coef
     else:
         residual = y - y.mean()
-    if np.ptp(residual) <= _ROUNDOFF * np.max(np.abs(y)):
+    if np.ptp(residual) <= _ROUNDOFF * max(abs(float(y.max())), abs(float(y.min()))):
         return np.zeros_like(residual)
     return residual
 
@@ -544,7 +573,7 @@ def error_stats(t: ArrayLike, error: ArrayLike, window: Window = None) -> ErrorS
         mean=mean,
         std=float(np.sqrt(_time_average(tw, (ew - mean) ** 2))),
         rms=float(np.sqrt(_time_average(tw, ew**2))),
-        max_abs=float(np.max(np.abs(ew))),
+        max_abs=max(abs(float(ew.max())), abs(float(ew.min()))),
     )
 
 
@@ -568,7 +597,7 @@ def peak_value(t: ArrayLike, y: ArrayLike, window: Window = None) -> float:
     t = _time(t)
     y = _signal("y", y, t)
     _, yw = _windowed(t, window, y)
-    return float(yw[np.argmax(np.abs(yw))])
+    return float(yw[_largest(yw)])
 
 
 def fluctuation_amplitude(
@@ -840,8 +869,9 @@ def load_recovery(
     t_end = float(t[-1]) if t_end is None else _scalar("t_end", t_end)
     if t_end <= t_load:
         raise ValueError(f"t_end must be > t_load = {t_load}, got {t_end}")
-    tw, ew = _windowed(t, (t_load, t_end), y - reference)
-    k = int(np.argmax(np.abs(ew)))
+    tw, yw, rw = _windowed(t, (t_load, t_end), y, reference)
+    ew = yw - rw
+    k = _largest(ew)
     band = max(band, dip_fraction * abs(float(ew[k])))
     return LoadRecovery(
         dip=float(ew[k]),

@@ -410,6 +410,11 @@ def next_reversal(t: np.ndarray, reference: np.ndarray, t_from: float) -> float:
     return float(t[after[nonzero[0] + flipped[0] - 1]])
 
 
+def _count_between(t: np.ndarray, start: float, end: float) -> int:
+    """How many samples of the increasing ``t`` lie in [start, end], counted without a mask."""
+    return int(np.searchsorted(t, end, "right") - np.searchsorted(t, start, "left"))
+
+
 def load_response(
     t: np.ndarray,
     y: np.ndarray,
@@ -422,7 +427,7 @@ def load_response(
     """The load step's dip, recovery time and band, and the steady error under load, over
     ``[t_load, t_end]`` (see the module docstring)."""
     out = {}
-    if np.count_nonzero((t >= t_load) & (t <= t_end)) < 2:
+    if _count_between(t, t_load, t_end) < 2:
         return out  # no interval to measure
     rec = m.load_recovery(
         t, y, ref, t_load, band=floor, t_end=t_end, dip_fraction=RECOVERY_FRACTION
@@ -431,8 +436,9 @@ def load_response(
     out["load_recovery_time_s"] = rec.recovery_time
     out[f"load_recovery_band_{unit}"] = rec.band
     window = (t_end - STEADY_FRACTION * (t_end - t_load), t_end)
-    if np.count_nonzero((t >= window[0]) & (t <= window[1])) >= 2:
-        stats = m.error_stats(t, ref - y, window)
+    if _count_between(t, *window) >= 2:
+        rows = m.window_rows(t, window)
+        stats = m.error_stats(t[rows], ref[rows] - y[rows])
         mean, rms = stats.mean, stats.rms
     else:
         mean = rms = math.nan
@@ -452,25 +458,28 @@ def step_metrics(result, quantity: str) -> dict:
         ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
     t_end = t[-1]
     t_load, t_step_end = _load_window(result)
-    before = t < t_step_end
-    final = ref[before][-1]
+    before = int(np.searchsorted(t, t_step_end, "left"))  # the rows t < t_step_end
+    final = ref[before - 1]
     info = m.step_info(
-        t[before],
-        y[before],
+        t[:before],
+        y[:before],
         initial=y[0],
         final=final,
         dead_zone_threshold=DEAD_ZONE_MM if quantity == "position" else None,
     )
     out = {k: v for k, v in info.items() if k != "peak"}
     out[f"peak_{unit}"] = info["peak"]
-    steady = (t_step_end - STEADY_FRACTION * (t_step_end - t[0]), t_step_end - 1e-12)
-    stats = m.error_stats(t, ref - y, steady)
+    steady = m.window_rows(
+        t, (t_step_end - STEADY_FRACTION * (t_step_end - t[0]), t_step_end - 1e-12)
+    )
+    stats = m.error_stats(t[steady], ref[steady] - y[steady])
     out[f"steady_error_mean_{unit}"] = stats.mean
     out[f"steady_error_std_{unit}"] = stats.std
     out[f"steady_error_rms_{unit}"] = stats.rms
     if t_load is not None:
         floor = RECOVERY_FLOOR_MM if quantity == "position" else RECOVERY_FLOOR_RPM
         out.update(load_response(t, y, ref, t_load, t_end, floor, unit))
+    del y, ref  # two long columns freed before the current's is read
     tail = (t_end - STEADY_FRACTION * (t_end - t[0]), t_end)
     chat = m.chattering(t, result["iq_ref_A"], tail)
     out["iq_chattering_A"] = chat.amplitude
