@@ -119,6 +119,28 @@ def test_a_bad_format_is_one_line(tmp_path):
     assert not (tmp_path / "x").exists()
 
 
+def test_traces_no_mat_file_can_hold_are_refused_before_the_run(tmp_path):
+    """1000 s of speed-step at 10 kHz: 2.3 GB of traces, over a MAT-file variable's 2 GiB;
+    refused in one line before anything is simulated (the run would take half a minute)."""
+    out = tmp_path / "big"
+    args = ["run", "speed-step", "-l", "PI", "--set", "duration_s=1000", "--format", "mat"]
+    result = invoke(*args, "--out", str(out))
+    assert result.exit_code == 2, result.output
+    assert "--format mat: the traces would be 2.3" in result.output
+    assert "solver.record_period_s" in result.output and "simulated" not in result.output
+    assert not out.exists()
+
+
+def test_the_mat_limit_is_matlabs_2_gib_for_one_variable():
+    from emasim.sim.result import MAT_MAX_BYTES, check_mat_size
+
+    columns = 8
+    rows = MAT_MAX_BYTES // (8 * columns)
+    check_mat_size(rows - 1, columns)
+    with pytest.raises(emasim.errors.InputError, match="under 2.15 GB"):
+        check_mat_size(rows, columns)
+
+
 def test_meta_says_where_and_how_it_ran(tmp_path, monkeypatch):
     out = tmp_path / "m"
     args = ["run", "speed-step", "-l", "PI", "--set", SHORT, "--out", str(out)]

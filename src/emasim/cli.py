@@ -447,7 +447,7 @@ def run(
             from .sim.result import check_trace_format
 
             check_runnable(sc, trust_fmu)  # every rule, before the compile notice
-            check_trace_format(trace_format)
+            check_trace_format(trace_format, sc)
             if out is not None:
                 check_folder(out, force)  # refuse before spending the simulation time
             _notice_compile()

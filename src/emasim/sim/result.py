@@ -240,6 +240,7 @@ class Result:
         per column (a column vector), ``units`` (column -> unit), ``scenario`` and ``label``."""
         from scipy.io import savemat
 
+        check_mat_size(self.data.shape[0], len(self.columns))
         units = self.description.units if self.description is not None else {}
         struct = {name: self[name] for name in self.columns}
         struct["units"] = {name: units.get(name, "") for name in self.columns}
@@ -445,9 +446,32 @@ def default_folder(scenario: dict, what: str) -> Path:
     return fresh_folder(RUNS_ROOT / slug(scenario.get("name", "run")), what)
 
 
-def check_trace_format(trace_format: str) -> None:
+# MATLAB's limit on one variable of a MAT-file of version 7 or earlier (its save needs -v7.3
+# for 2 GB or more); scipy.io.savemat writes version 5, and :meth:`Result._mat` one variable
+MAT_MAX_BYTES = 2**31
+
+
+def check_trace_format(trace_format: str, scenario=None) -> None:
+    """Refuse an unknown trace format, and, for ``mat``, a run of ``scenario`` (each of its
+    controller sets) whose traces one MAT-file variable cannot hold: before it is simulated."""
     if trace_format not in TRACE_FORMATS:
         raise InputError(f"--format: one of {', '.join(TRACE_FORMATS)}, got {trace_format!r}")
+    if trace_format == "mat" and scenario is not None:
+        for _, variant in scenario.variants():
+            setup = variant.setup()
+            check_mat_size(setup.recorded_rows, len(setup.kept_columns()))
+
+
+def check_mat_size(rows: int, columns: int) -> None:
+    """Refuse traces of ``rows`` x ``columns`` float64 at or over MAT_MAX_BYTES, in one line."""
+    size = 8 * rows * columns
+    if size >= MAT_MAX_BYTES:
+        raise InputError(
+            f"--format mat: the traces would be {size / 1e9:.3g} GB ({rows} rows x {columns} "
+            f"columns); a MAT-file variable holds under {MAT_MAX_BYTES / 1e9:.3g} GB (MATLAB's "
+            "limit before -v7.3): write parquet or csv, or record fewer rows "
+            "(solver.record_period_s)"
+        )
 
 
 def _drawer(figures, result=None):
