@@ -21,6 +21,7 @@ import pytest
 from typer.testing import CliRunner
 
 from emasim.analysis import figure_process
+from emasim.analysis.report import step_metrics
 from emasim.cli import app
 from emasim.errors import InputError, OutputError
 from emasim.experiments.runs import run_scenario
@@ -98,6 +99,34 @@ def test_the_spool_has_no_name_a_kill_could_leave_behind(small_groups):
     run.advance(2000)
     assert os.fstat(run.spool.handle.fileno()).st_nlink == 0  # no name in any folder
     assert set(os.listdir(tempfile.gettempdir())) == before
+
+
+@pytest.mark.parametrize(
+    ("name", "settings", "loaded"),
+    [
+        ("speed-step", ("duration_s=0.6",), True),  # the load at 0.4 s: its response, many blocks
+        ("speed-step", ("load.motor_torque_Nm=[]",), False),  # the whole run is the step's
+        ("position-step", (), False),  # the dead zone, and the rod's step
+    ],
+)
+def test_step_metrics_of_a_streamed_run_are_the_whole_runs_exactly(
+    small_groups, name, settings, loaded
+):
+    """The step's figures take no sum across blocks (emasim.analysis.passes): a crossing or an
+    exit is found in one block, an extreme is an extreme, and the windows whose figures are
+    sums are joined whole first. So they equal the whole run's bit for bit."""
+    scenario = _scenario(name, settings)
+    streamed = run_scenario(scenario)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(spool, "SPOOL_BYTES", 2**40)
+        whole = run_scenario(scenario)
+    assert isinstance(streamed.data, ParquetTraces) and not isinstance(whole.data, ParquetTraces)
+    quantity = scenario.experiment().quantity
+    a, b = (step_metrics(result, quantity) for result in (streamed, whole))
+    assert a.keys() == b.keys()
+    assert ("load_recovery_time_s" in a) == loaded
+    for key, value in b.items():
+        assert a[key] == value or (np.isnan(a[key]) and np.isnan(value)), key
 
 
 @pytest.mark.parametrize("name", ["speed-sine", "bench-step"])

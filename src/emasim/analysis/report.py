@@ -56,6 +56,7 @@ from pydantic import TypeAdapter
 from ..interface import LIMIT_CURRENT, LIMIT_SPEED, LIMIT_VOLTAGE
 from ..signals import Term, encode, signal_values
 from . import metrics as m
+from . import passes
 
 RPM_PER_RAD_S = 30.0 / math.pi
 DEG_PER_RAD = 180.0 / math.pi
@@ -410,35 +411,22 @@ def next_reversal(t: np.ndarray, reference: np.ndarray, t_from: float) -> float:
     return float(t[after[nonzero[0] + flipped[0] - 1]])
 
 
-def _count_between(t: np.ndarray, start: float, end: float) -> int:
-    """How many samples of the increasing ``t`` lie in [start, end], counted without a mask."""
-    return int(np.searchsorted(t, end, "right") - np.searchsorted(t, start, "left"))
-
-
-def load_response(
-    t: np.ndarray,
-    y: np.ndarray,
-    ref: np.ndarray,
-    t_load: float,
-    t_end: float,
-    floor: float,
-    unit: str,
-) -> dict:
+def load_response(read, t_load: float, t_end: float, floor: float, unit: str) -> dict:
     """The load step's dip, recovery time and band, and the steady error under load, over
-    ``[t_load, t_end]`` (see the module docstring)."""
-    out = {}
-    if _count_between(t, t_load, t_end) < 2:
-        return out  # no interval to measure
-    rec = m.load_recovery(
-        t, y, ref, t_load, band=floor, t_end=t_end, dip_fraction=RECOVERY_FRACTION
-    )
-    out[f"load_dip_{unit}"] = rec.dip
-    out["load_recovery_time_s"] = rec.recovery_time
-    out[f"load_recovery_band_{unit}"] = rec.band
-    window = (t_end - STEADY_FRACTION * (t_end - t_load), t_end)
-    if _count_between(t, *window) >= 2:
-        rows = m.window_rows(t, window)
-        stats = m.error_stats(t[rows], ref[rows] - y[rows])
+    ``[t_load, t_end]`` (see the module docstring), of ``read()``: a new iterable at each call
+    of blocks (own_from, (t, output, reference)), as Result.blocks gives them; read twice."""
+    window = passes.Rows(passes.Interval(t_end - STEADY_FRACTION * (t_end - t_load), t_end))
+    rec = passes.load_recovery(read, t_load, t_end, floor, RECOVERY_FRACTION, window)
+    if rec is None:
+        return {}  # no interval to measure
+    out = {
+        f"load_dip_{unit}": rec.dip,
+        "load_recovery_time_s": rec.recovery_time,
+        f"load_recovery_band_{unit}": rec.band,
+    }
+    tw, ew = window.joined() or (np.empty(0), np.empty(0))
+    if tw.size >= 2:
+        stats = m.error_stats(tw, ew)
         mean, rms = stats.mean, stats.rms
     else:
         mean = rms = math.nan
@@ -447,45 +435,68 @@ def load_response(
     return out
 
 
+STEP_SIGNALS = {  # quantity: (unit, scale from SI, output column, reference column)
+    "position": ("mm", 1e3, "actuator_position_m", "position_ref_m"),
+    "speed": ("rpm", RPM_PER_RAD_S, "motor_speed_rad_s", "speed_ref_rad_s"),
+}
+
+
 def step_metrics(result, quantity: str) -> dict:
-    """Step of motor speed (rpm) or rod position (mm)."""
-    t = result.t
-    if quantity == "position":
-        unit, y, ref = "mm", 1e3 * result["actuator_position_m"], 1e3 * result["position_ref_m"]
-    else:
-        unit = "rpm"
-        y = RPM_PER_RAD_S * result["motor_speed_rad_s"]
-        ref = RPM_PER_RAD_S * result["speed_ref_rad_s"]
-    t_end = t[-1]
+    """Step of motor speed (rpm) or rod position (mm). In passes over the trace's blocks
+    (emasim.analysis.passes): the step's figures, and the rows of the windows whose figures
+    are sums (the steady errors, the current's chattering); the load response reads the rows
+    from the load step on twice."""
+    unit, scale, column, reference = STEP_SIGNALS[quantity]
+
+    def read(*more):
+        """(own_from, (t, output, reference, *more)) of each block, in the figures' unit."""
+        for block in result.blocks("t_s", column, reference, *more):
+            t, y, ref, *rest = block.columns
+            yield block.own_from, (t, scale * y, scale * ref, *rest)
+
+    t_first, t_end = result.span
     t_load, t_step_end = _load_window(result)
-    before = int(np.searchsorted(t, t_step_end, "left"))  # the rows t < t_step_end
-    final = ref[before - 1]
-    info = m.step_info(
-        t[:before],
-        y[:before],
-        initial=y[0],
-        final=final,
-        dead_zone_threshold=DEAD_ZONE_MM if quantity == "position" else None,
+    initial, final = _step_ends(read(), t_step_end)
+    step = passes.StepInfo(
+        initial, final, t_step_end, DEAD_ZONE_MM if quantity == "position" else None
     )
+    steady = passes.Rows(
+        passes.Interval(t_step_end - STEADY_FRACTION * (t_step_end - t_first), t_step_end - 1e-12)
+    )
+    tail = passes.Rows(passes.Interval(t_end - STEADY_FRACTION * (t_end - t_first), t_end))
+    for own_from, (t, y, ref, iq_ref) in read("iq_ref_A"):
+        step.add(t, y, own_from)
+        steady.add(t, own_from, ref - y)
+        tail.add(t, own_from, iq_ref)
+    info = step.info()
     out = {k: v for k, v in info.items() if k != "peak"}
     out[f"peak_{unit}"] = info["peak"]
-    steady = m.window_rows(
-        t, (t_step_end - STEADY_FRACTION * (t_step_end - t[0]), t_step_end - 1e-12)
-    )
-    stats = m.error_stats(t[steady], ref[steady] - y[steady])
+    stats = m.error_stats(*steady.joined())
     out[f"steady_error_mean_{unit}"] = stats.mean
     out[f"steady_error_std_{unit}"] = stats.std
     out[f"steady_error_rms_{unit}"] = stats.rms
     if t_load is not None:
         floor = RECOVERY_FLOOR_MM if quantity == "position" else RECOVERY_FLOOR_RPM
-        out.update(load_response(t, y, ref, t_load, t_end, floor, unit))
-    del y, ref  # two long columns freed before the current's is read
-    tail = (t_end - STEADY_FRACTION * (t_end - t[0]), t_end)
-    chat = m.chattering(t, result["iq_ref_A"], tail)
+        out.update(load_response(read, t_load, t_end, floor, unit))
+    chat = m.chattering(*tail.joined())
     out["iq_chattering_A"] = chat.amplitude
     # below a micro-ampere the "chattering" is round-off and its frequency means nothing
     out["iq_chattering_frequency_Hz"] = chat.frequency_Hz if chat.amplitude > 1e-6 else 0.0
     return {k: float(v) for k, v in out.items()}
+
+
+def _step_ends(blocks, t_step_end: float) -> tuple[float, float]:
+    """The output's first value, and the reference's last before ``t_step_end``: the step's
+    initial and final levels, read from ``blocks`` (own_from, (t, output, reference)) up to
+    the one that reaches ``t_step_end``."""
+    initial = final = None
+    for _, (t, y, ref) in blocks:
+        initial = y[0] if initial is None else initial
+        before = int(np.searchsorted(t, t_step_end, "left"))  # its rows t < t_step_end
+        final = ref[before - 1] if before else final
+        if before < t.size:
+            break
+    return initial, final
 
 
 def _sine_frequency(result) -> float:
@@ -526,7 +537,8 @@ def sine_metrics(result, quantity: str = "speed") -> dict:
     }
     if t_load is not None:
         t, y, ref = window.rows()
-        out.update(load_response(t, y, ref, t_load, next_reversal(t, ref, t_load), floor, unit))
+        end = next_reversal(t, ref, t_load)
+        out.update(load_response(lambda: [(0, (t, y, ref))], t_load, end, floor, unit))
     return {k: float(v) for k, v in out.items()}
 
 
