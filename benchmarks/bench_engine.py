@@ -18,8 +18,9 @@ the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``r
 after each, with the bytes its trace would take in memory (rows x columns x 8; a trace larger
 than emasim.sim.spool.SPOOL_BYTES streams to disk instead); 1000 s runs in a process of its own
 (MEMORY_S); and each of MEMORY_S through the command line, ``emasim run speed-sine -c speed=pi
---set duration_s=D`` (metrics, plot and result folder included), whose peak RSS is the largest
-of its processes' (``RUSAGE_CHILDREN`` of a fresh process that runs it). Batch: the study
+--set duration_s=D`` (metrics, plot and result folder included), and the longest of speed-step
+the same way, whose peak RSS is the largest of its processes' (``RUSAGE_CHILDREN`` of a fresh
+process that runs it). Batch: the study
 facility's throughput on one and on two worker processes (``bench_study.study_scaling``);
 beside it, CEILING PID runs of the same Monte Carlo, cut short, their compiled loop alone
 (EngineRun.advance, the GIL released) on one and on two Python threads: the scaling this
@@ -238,25 +239,26 @@ def peak_memory(*durations_s: float) -> list[dict]:
     return [json.loads(line) for line in proc.stdout.splitlines()]
 
 
-def command_line_memory(duration_s: float) -> dict:
-    """Peak RSS of ``emasim run speed-sine -c speed=pi --set duration_s=D`` (the largest of its
+def command_line_memory(duration_s: float, scenario: str = "speed-sine") -> dict:
+    """Peak RSS of ``emasim run SCENARIO -c speed=pi --set duration_s=D`` (the largest of its
     processes, CLI_MEMORY_CHILD), in a new temporary folder, with the trace's bytes."""
-    args = ["run", "speed-sine", "-c", "speed=pi", "--set", f"duration_s={duration_s:g}"]
+    args = ["run", scenario, "-c", "speed=pi", "--set", f"duration_s={duration_s:g}"]
     with tempfile.TemporaryDirectory() as out:
         cmd = [sys.executable, "-c", CLI_MEMORY_CHILD, f"{out}/run", *args]
         proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=out,
                               env=user_environment())  # fmt: skip
-    return {"duration_s": duration_s, **json.loads(proc.stdout)}
+    return {"scenario": scenario, "duration_s": duration_s, **json.loads(proc.stdout)}
 
 
 def memory_figures(durations_s) -> dict:
     """The baseline (BASELINE_S: import and compiled code) and the first duration in one
     process, every other duration in a process of its own; each duration through the command
-    line."""
+    line, and the longest also of speed-step (a step's metrics, in passes)."""
     baseline, *runs = peak_memory(BASELINE_S, durations_s[0])
     for duration in durations_s[1:]:
         runs += peak_memory(duration)
     cli = [command_line_memory(duration) for duration in durations_s]
+    cli.append(command_line_memory(durations_s[-1], "speed-step"))
     return {"baseline": baseline, "runs": runs, "command_line": cli}
 
 
@@ -450,7 +452,8 @@ def report(results: dict) -> None:
         )
     for run in memory["command_line"]:
         print(
-            f"peak RSS, emasim run speed-sine -c speed=pi, {run['duration_s']:g} s: "
+            f"peak RSS, emasim run {run.get('scenario', 'speed-sine')} -c speed=pi, "
+            f"{run['duration_s']:g} s: "
             f"{run['peak_rss_bytes'] / 1e6:.0f} MB, trace {run['trace_bytes'] / 1e6:.1f} MB"
         )
     bench_study.report(results["batch"], results.get("monte_carlo"))

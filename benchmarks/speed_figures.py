@@ -302,7 +302,8 @@ def memory_rows(results: dict) -> list[tuple[str, str, str]]:
     for run in memory.get("command_line", []):
         rows.append(
             (
-                f"`emasim run speed-sine -c speed=pi --set duration_s={run['duration_s']:g}` "
+                f"`emasim run {run.get('scenario', 'speed-sine')} -c speed=pi --set "
+                f"duration_s={run['duration_s']:g}` "
                 f"(metrics, plot and result folder), a trace of {run['columns']} columns "
                 f"({megabytes(run['trace_bytes'])})",
                 "peak RSS of the largest of its processes (`RUSAGE_CHILDREN` of a fresh process "
