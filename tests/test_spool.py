@@ -195,11 +195,14 @@ def test_the_command_line_streams_a_long_run_and_draws_its_figure(
     small_groups, tmp_path, monkeypatch
 ):
     """``emasim run`` of a run longer than a row group: the folder's traces are the streamed file
-    (several row groups) and equal the in-memory run's; its figure is drawn in the process that
-    holds the file (the figure process would be handed the whole trace)."""
+    (several row groups) and equal the in-memory run's; its figure goes to the figure process
+    as a result in memory that holds the rows the figure draws (Result.drawn), never the file."""
+    handed = []
+    save = figure_process.FigureProcess.save
 
-    def handed_over(*_):
-        raise RuntimeError("a streamed run's figure went to the figure process")
+    def handed_over(self, draw, path):
+        handed.append(draw.__self__)
+        save(self, draw, path)
 
     monkeypatch.setattr(figure_process.FigureProcess, "save", handed_over)
     args = ["run", "speed-sine", "-c", "speed=pi", "--set", SHORT, "--out", str(tmp_path / "run")]
@@ -208,6 +211,7 @@ def test_the_command_line_streams_a_long_run_and_draws_its_figure(
     folder = tmp_path / "run"
     assert (folder / "plot.png").stat().st_size > 0
     assert pq.ParquetFile(folder / "result.parquet").num_row_groups > 1
+    assert len(handed) == 1 and isinstance(handed[0].data, np.ndarray)
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(spool, "SPOOL_BYTES", 2**40)
         whole = simulate(
@@ -215,3 +219,50 @@ def test_the_command_line_streams_a_long_run_and_draws_its_figure(
         )
     back = Result.load(folder)
     assert np.array_equal(np.asarray(back.data), whole.data, equal_nan=True)
+
+
+@pytest.mark.parametrize("runs", [1, 7, 40, 5000])
+def test_a_figure_reads_the_envelope_of_a_spooled_trace(runs):
+    """ParquetTraces.envelope, read a row group at a time: rows of the trace in order, the first
+    and the last among them, and in each run of rows every column's smallest and largest value
+    (NaN skipped), so that a figure drawn from it keeps every peak."""
+    rng = np.random.default_rng(3)
+    rows = 1009
+    data = np.column_stack([np.arange(rows) * 1e-3, rng.normal(size=(rows, 3))])
+    data[rng.choice(rows, 40), 2] = np.nan
+    data[500:700, 3] = np.nan  # a stretch of NaN longer than some runs
+    store = spool.TraceSpool(("t_s", "a", "b", "c"))
+    for first in range(0, rows, 101):  # row groups of 101 rows: never aligned with the runs
+        store.append(data[first : first + 101].T.copy())
+    kept = store.finish().envelope(runs, [0, 1, 2, 3])
+    index = np.searchsorted(data[:, 0], kept[:, 0])
+    assert np.all(np.diff(index) > 0) and index[0] == 0 and index[-1] == rows - 1
+    assert np.array_equal(kept, data[index], equal_nan=True)
+    size = -(-rows // runs)
+    for first in range(0, rows, size):
+        part, mine = data[first : first + size], kept[(index >= first) & (index < first + size)]
+        for column in range(1, 4):
+            if np.all(np.isnan(part[:, column])):
+                continue
+            assert np.nanmax(part[:, column]) == np.nanmax(mine[:, column])
+            assert np.nanmin(part[:, column]) == np.nanmin(mine[:, column])
+
+
+@pytest.mark.parametrize("name", ["speed-step", "position-step", "bench-step"])
+def test_a_runs_figures_read_only_the_figure_columns(name):
+    """What Result.drawn keeps of a spooled trace, FIGURE_COLUMNS, is every column the run's
+    figure and the comparison's overlay read: both draw from a result holding only those."""
+    from dataclasses import replace
+
+    from emasim.analysis.report import FIGURE_COLUMNS
+
+    result = run_scenario(_scenario(name))
+    names = tuple(n for n in result.columns if n in FIGURE_COLUMNS)
+    only = replace(
+        result, columns=names, data=result.data[:, [result.columns.index(n) for n in names]]
+    )
+    assert len(names) < len(result.columns)
+    only.plot()
+    from emasim.analysis.plots import plot_comparison
+
+    plot_comparison({"one": only})

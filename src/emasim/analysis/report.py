@@ -75,9 +75,10 @@ COST_FORMULA = (  # the tuning cost in words, for the tuned file's record and th
 RECOVERY_FRACTION = 0.1  # load recovery: back within 10 % of the load step's dip ...
 RECOVERY_FLOOR_RPM = 1.0  # ... or within this absolute band, whichever is wider (speed) ...
 RECOVERY_FLOOR_MM = 0.01  # ... (rod position: 10 um, the DEAD_ZONE_MM resolution)
-# every trace column the metrics and the plots read: a run that records chosen signals
-# (solver.record_signals) records these too (the linkage's only with a linkage)
-ANALYSIS_COLUMNS = (
+# every trace column a run's figure reads (emasim.analysis.plots: plot_result and
+# plot_comparison, the rudder's command through rudder_traces): a spooled trace's figure reads
+# only these (Result.drawn)
+FIGURE_COLUMNS = (
     "t_s",
     "motor_speed_rad_s",
     "speed_ref_rad_s",
@@ -90,10 +91,15 @@ ANALYSIS_COLUMNS = (
     "actuator_velocity_m_s",
     "position_ref_m",
     "rudder_angle_rad",
+    "linkage_rudder_rate_rad_s",
+)
+# every trace column the metrics and the plots read: a run that records chosen signals
+# (solver.record_signals) records these too (the linkage's only with a linkage)
+ANALYSIS_COLUMNS = (
+    *FIGURE_COLUMNS,
     "measured_rudder_rad",
     "measured_position_m",
     "measured_speed_rad_s",
-    "linkage_rudder_rate_rad_s",
     "limit_flags",
     "end_stop_force_N",
     "rudder_stop_torque_Nm",

@@ -37,9 +37,8 @@ PLANT_SECTIONS = tuple(
 )
 NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
 MAX_SUBSTEPS = 10_000  # integration sub-steps per controller sample
-# rows of the trace: it streams to disk as it is recorded (emasim.sim.spool), but the figures
-# and the bench metrics still read a column whole, 0.8 GB a column at 1e8 rows (a few GB at a
-# figure's peak): 10 000 s at 10 kHz
+# rows of the trace: it streams to disk as it is recorded (emasim.sim.spool), but the bench
+# metrics still read a column whole, 0.8 GB a column at 1e8 rows: 10 000 s at 10 kHz
 MAX_RECORDED_ROWS = 100_000_000
 MIN_RECORDED_ROWS = 4  # the metrics' steady window, the run's second half, holds 2 rows
 

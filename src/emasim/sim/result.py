@@ -16,7 +16,7 @@ import json
 import os
 import tomllib
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -266,7 +266,20 @@ class Result:
         """The run's figure (emasim.analysis.plots.plot_result): a matplotlib Figure."""
         from ..analysis.plots import plot_result
 
-        return plot_result(self)
+        return plot_result(self.drawn())
+
+    def drawn(self) -> "Result":
+        """This result, or, for a spooled trace, the same result holding only what its figure
+        draws: the columns it reads (emasim.analysis.report.FIGURE_COLUMNS), at the rows of
+        their envelope (ParquetTraces.envelope of ENVELOPE_RUNS runs). Small and in memory, so
+        a figure process can be handed it."""
+        if not isinstance(self.data, ParquetTraces):
+            return self
+        from ..analysis.report import FIGURE_COLUMNS
+
+        names = tuple(name for name in self.columns if name in FIGURE_COLUMNS)
+        indices = [self.columns.index(name) for name in names]
+        return replace(self, columns=names, data=self.data.envelope(ENVELOPE_RUNS, indices))
 
     def write_files(
         self,
@@ -284,7 +297,7 @@ class Result:
         if traces and trace_format not in TRACE_FORMATS:
             raise ValueError(f"trace_format must be one of {TRACE_FORMATS}, got {trace_format!r}")
         if plot:
-            _drawer(figures).save(self.plot, folder / "plot.png")
+            _drawer(figures).save(self.drawn().plot, folder / "plot.png")
         if traces:
             path = folder / f"result.{trace_format}"
             if trace_format == "parquet":
@@ -369,9 +382,12 @@ class Comparison:
         from ..analysis.plots import plot_comparison
 
         name, overrides = self.scenario.get("name", ""), self.meta.get("overrides") or []
-        return plot_comparison(
-            self.results, f"{name} ({', '.join(overrides)})" if overrides else name
-        )
+        runs = {label: result.drawn() for label, result in self.results.items()}
+        return plot_comparison(runs, f"{name} ({', '.join(overrides)})" if overrides else name)
+
+    def drawn(self) -> "Comparison":
+        """This comparison with each run :meth:`Result.drawn`."""
+        return replace(self, results={label: r.drawn() for label, r in self.results.items()})
 
     def write_files(
         self, folder: Path, plot: bool = True, trace_format: str = "parquet", figures=None
@@ -379,7 +395,7 @@ class Comparison:
         """Write every run into a sub-folder named by its label (each with its own plot), and
         the overlay beside them (``figures``: see :meth:`Result.write_files`)."""
         if plot:
-            _drawer(figures).save(self.plot, folder / "comparison.png")  # the longest first
+            _drawer(figures).save(self.drawn().plot, folder / "comparison.png")  # longest first
         for label, result in self.results.items():
             sub = folder / slug(label)
             sub.mkdir()
@@ -474,20 +490,18 @@ def check_mat_size(rows: int, columns: int) -> None:
         )
 
 
-def _drawer(figures, result=None):
-    """``figures``, or one that draws in this process: by default, and, whatever ``figures``
-    is, for a ``result`` (a Result or Comparison) with a spooled trace, which another process
-    would be handed whole."""
-    runs = getattr(result, "results", {"": result}).values()
-    if figures is not None and not any(
-        isinstance(getattr(run, "data", None), ParquetTraces) for run in runs
-    ):
+def _drawer(figures):
+    """``figures``, or by default one that draws in this process."""
+    if figures is not None:
         return figures
     from ..analysis.figure_process import DrawHere
 
     return DrawHere()
 
 
+# runs of rows whose extremes a spooled trace's figure keeps (Result.drawn): a figure is 8 in
+# at 110 dpi, 880 pixels wide, so two rows or more to a pixel's column
+ENVELOPE_RUNS = 2000
 OVERWRITE_HINT = "pass overwrite=True to replace it"
 WORDS = {  # how a refusal names the target and says how to replace it or get a fresh one
     "python": ("folder", (OVERWRITE_HINT, "or folder=None for a fresh folder")),
@@ -536,7 +550,7 @@ def _save(result, folder, plot, force, kind, trace_format, figures, words):
         target, unique = default_folder(result.scenario, named), True
     else:
         target, unique = Path(folder), False
-    drawer = _drawer(figures, result)
+    drawer = _drawer(figures)
 
     def write(tmp: Path) -> None:
         result.write_files(tmp, plot, trace_format=trace_format, figures=drawer)

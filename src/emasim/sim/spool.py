@@ -135,6 +135,34 @@ class ParquetTraces:
         for columns in self.column_groups(list(range(self.shape[1]))):
             yield np.column_stack(columns)
 
+    def envelope(self, runs: int, indices: list[int]) -> np.ndarray:
+        """The rows a figure of the columns at ``indices`` needs, read a row group at a time, as
+        a (rows, len(indices)) array in order: in each of ``runs`` equal runs of rows (each cut
+        where a row group ends), its first and last row and the rows of every column's smallest
+        and largest value (NaN skipped). A line drawn through them keeps the amplitude of every
+        oscillation, as emasim.analysis.plots thins a whole trace."""
+        size = max(1, -(-self.shape[0] // runs))
+        kept, start = [], 0
+        for columns in self.column_groups(indices):
+            block = np.column_stack(columns)
+            edges = np.arange(-(start % size), block.shape[0], size)
+            ends = np.minimum(edges + size, block.shape[0])
+            for first, last in zip(np.maximum(edges, 0), ends, strict=True):
+                part = block[first:last]
+                nan = np.isnan(part)
+                rows = np.unique(
+                    np.concatenate(
+                        [
+                            [0, part.shape[0] - 1],
+                            np.where(nan, np.inf, part).argmin(axis=0),
+                            np.where(nan, -np.inf, part).argmax(axis=0),
+                        ]
+                    )
+                )
+                kept.append(part[rows])
+            start += block.shape[0]
+        return np.concatenate(kept) if kept else np.empty((0, len(indices)))
+
     def span(self) -> tuple[float, float]:
         """The first and the last value of the first column (a trace's first column is its
         time, t_s): two row groups read, not the file."""
