@@ -266,3 +266,21 @@ def test_a_runs_figures_read_only_the_figure_columns(name):
     from emasim.analysis.plots import plot_comparison
 
     plot_comparison({"one": only})
+
+
+def test_a_spooled_file_is_copied_byte_for_byte_in_the_kernel_or_not(small_groups, tmp_path):
+    """ParquetTraces.copy_to: into a file after bytes already written there (the kernel's
+    copy_file_range, at the handle's position), and into a handle without a file descriptor
+    (this process's copy): the Parquet file's bytes either way."""
+    traces = EngineRun(_scenario().setup(), stream=True)
+    traces.advance(traces.setup.n_ticks)
+    data = traces.result().data
+    data.handle.seek(0)
+    original = data.handle.read()
+    with open(tmp_path / "copy", "wb") as handle:
+        handle.write(b"head")
+        data.copy_to(handle)
+    assert (tmp_path / "copy").read_bytes() == b"head" + original
+    memory = io.BytesIO()
+    data.copy_to(memory)
+    assert memory.getvalue() == original
