@@ -382,7 +382,7 @@ class Comparison:
         from ..analysis.plots import plot_comparison
 
         name, overrides = self.scenario.get("name", ""), self.meta.get("overrides") or []
-        runs = {label: result.drawn() for label, result in self.results.items()}
+        runs = self.drawn().results
         return plot_comparison(runs, f"{name} ({', '.join(overrides)})" if overrides else name)
 
     def drawn(self) -> "Comparison":
