@@ -14,7 +14,7 @@ import pytest
 from emasim.control.slot import CONTROLLER_SIG, Compiled
 from emasim.errors import SimulationDiverged
 from emasim.interface import O_RATE, O_VALUE
-from emasim.plant.actuator import STATE_NAMES, X_IQ, X_WM
+from emasim.plant.actuator import STATE_NAMES, X_IQ, X_THETA, X_WM
 from emasim.scenarios.loader import load_scenario
 from emasim.scenarios.schema import Load
 from emasim.signals import Constant
@@ -162,6 +162,9 @@ def test_without_a_stiff_mode_or_a_load_the_cause_is_the_state_that_ran_away():
     setup = short("speed-step", 0.2, 0.02).setup()
     assert "ran far beyond the drive's speed" in likely_cause(setup, X_WM)
     assert "current limit" in likely_cause(setup, X_IQ)
+    # a position: a runaway, or a speed held that long on a plant without end stops
+    assert "1000 strokes from mid stroke" in likely_cause(setup, X_THETA)
+    assert "without end stops" in likely_cause(setup, X_THETA)
 
 
 def stall_force(plant) -> float:

@@ -14,8 +14,10 @@ The checks, in order:
    torque / K, rudder torque through the linkage's lever at mid stroke or the lumped arm)
    against the stall force of the drive,
    F_stall = kt I_max eta / K, kt = 1.5 np psi_f.
-3. **A limit that was hit.** The state that left its bound is a speed, a current or the rod
-   position: it ran beyond what the drive allows (the bounds are far outside any real motion).
+3. **A limit that was hit.** The state that left its bound is a speed or a current: it ran
+   beyond what the drive allows (the bounds are far outside any real motion); or the rod's
+   position (or the motor's angle): a runaway, or a run without end stops that drove the rod
+   one way for FAR_RUNAWAY strokes (a speed loop holding its speed for a long run).
 
 Otherwise the likely cause is the controller: gains that make the sampled loop unstable.
 """
@@ -23,6 +25,7 @@ Otherwise the likely cause is the controller: gains that make the sampled loop u
 import numpy as np
 
 from ..plant import actuator as A
+from ..plant.element import FAR_RUNAWAY
 from ..plant.elements import linkage as L
 from ..plant.elements.motor import torque_constant
 from ..signals import signal_value
@@ -87,9 +90,16 @@ def likely_cause(setup, state_index: int) -> str:
     name = A.STATE_NAMES[state_index]
     if state_index in (A.X_ID, A.X_IQ):
         return f"'{name}' ran far beyond the drive's current limit: check the current loop gains"
-    if state_index in (A.X_WM, A.X_VL, A.X_THETA, A.X_XL):
+    if state_index in (A.X_WM, A.X_VL):
         return (
-            f"'{name}' ran far beyond the drive's speed and stroke: the loop ran away; check "
-            "the gains and the sign of any user controller"
+            f"'{name}' ran far beyond the drive's speed: the loop ran away; check the gains "
+            "and the sign of any user controller"
+        )
+    if state_index in (A.X_THETA, A.X_XL):
+        return (
+            f"'{name}' went {FAR_RUNAWAY:g} strokes from mid stroke: the loop ran away (check "
+            "the gains and the sign of any user controller), or, on a plant without end stops, "
+            "the run drove the rod one way that long (a speed held for a long run does: add "
+            "the end stops or shorten the run)"
         )
     return "no stiff mode or load explains it: check the controller gains"
