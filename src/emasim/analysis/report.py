@@ -221,28 +221,29 @@ def tuning_terms(result, max_current_A: float) -> tuple[float, float]:
         names = ("position_ref_m", "measured_position_m")
     else:
         names = ("speed_ref_rad_s", "measured_speed_rad_s")
-    start, end = window = cost_window(result)
+    window = cost_window(result)
+    steady = passes.Interval(*window)
     scale, iae, squares, variation = 0.0, 0.0, 0.0, 0.0
-    low, high, inside, first, last = np.inf, -np.inf, 0, None, None
+    low, high, last = np.inf, -np.inf, None
     for block in result.blocks("t_s", *names, "iq_ref_A"):
         t, reference, output, iq_ref = block.columns
         error = reference - output
         for name, values in (("error", error), ("iq_ref_A", iq_ref)):
-            if not np.all(np.isfinite(values)):
-                raise ValueError(f"{name} must contain only finite values")
+            passes.finite(name, values)
         scale = max(scale, float(np.max(np.abs(reference))))
         iae += np.trapezoid(np.abs(error), t)
         variation += np.sum(np.abs(np.diff(iq_ref)))
-        steady = (t >= start) & (t <= end)
-        if np.any(steady):
-            tw, ew = t[steady], error[steady]
+        cut = steady.piece(t, block.own_from)
+        if cut is not None:  # the window's rows, with the seam row when the window holds it
+            tw, ew = t[cut[0]], error[cut[0]]
             squares += np.trapezoid(ew**2, tw)
             low, high = min(low, np.min(ew)), max(high, np.max(ew))
-            inside += np.count_nonzero(steady[block.own_from :])
-            first = tw[0] if first is None else first
             last = tw[-1]
-    if inside < 2:
-        raise ValueError(f"window {window!r} selects {inside} sample(s); at least 2 are needed")
+    if steady.rows < 2:
+        raise ValueError(
+            f"window {window!r} selects {steady.rows} sample(s); at least 2 are needed"
+        )
+    first = steady.first_t
     scale = max(scale, 1e-12)
     t0, t1 = result.span
     tracking = (
