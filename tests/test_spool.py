@@ -284,3 +284,14 @@ def test_a_spooled_file_is_copied_byte_for_byte_in_the_kernel_or_not(small_group
     memory = io.BytesIO()
     data.copy_to(memory)
     assert memory.getvalue() == original
+
+
+def test_a_streamed_runs_figure_rows_are_read_once(small_groups, monkeypatch):
+    """Result.drawn reads the envelope once: a comparison's overlay and the run's own figure
+    (Comparison.write_files draws both) share it."""
+    reads = []
+    envelope = ParquetTraces.envelope
+    monkeypatch.setattr(ParquetTraces, "envelope", lambda *a: reads.append(1) or envelope(*a))
+    result = run_scenario(_scenario())
+    assert isinstance(result.data, ParquetTraces)
+    assert result.drawn() is result.drawn() and len(reads) == 1

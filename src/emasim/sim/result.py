@@ -148,6 +148,7 @@ class Result:
     meta: dict = field(default_factory=dict)
     metrics: dict = field(default_factory=dict)
     description: RunDescription | None = None
+    _drawn: "Result | None" = field(default=None, init=False, repr=False, compare=False)
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
@@ -272,14 +273,18 @@ class Result:
         """This result, or, for a spooled trace, the same result holding only what its figure
         draws: the columns it reads (emasim.analysis.report.FIGURE_COLUMNS), at the rows of
         their envelope (ParquetTraces.envelope of ENVELOPE_RUNS runs). Small and in memory, so
-        a figure process can be handed it."""
+        a figure process can be handed it. Read once: a comparison's overlay and the run's own
+        figure draw the same."""
         if not isinstance(self.data, ParquetTraces):
             return self
-        from ..analysis.report import FIGURE_COLUMNS
+        if self._drawn is None:
+            from ..analysis.report import FIGURE_COLUMNS
 
-        names = tuple(name for name in self.columns if name in FIGURE_COLUMNS)
-        indices = [self.columns.index(name) for name in names]
-        return replace(self, columns=names, data=self.data.envelope(ENVELOPE_RUNS, indices))
+            names = tuple(name for name in self.columns if name in FIGURE_COLUMNS)
+            indices = [self.columns.index(name) for name in names]
+            envelope = self.data.envelope(ENVELOPE_RUNS, indices)
+            self._drawn = replace(self, columns=names, data=envelope)
+        return self._drawn
 
     def write_files(
         self,
