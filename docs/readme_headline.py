@@ -1,24 +1,28 @@
 """The headline tables of the README and of docs/paper.md, rendered from
-``docs/headline.json``, ``docs/robustness.json`` and ``docs/verdict_map.json``: the abstract's
-five figures, the paper's beside ours, as ``emasim reproduce`` measured them, their robustness
-over the plant uncertainty and where each verdict flips, as ``emasim reproduce --robustness``
-measured them.
+``docs/headline.json``, ``docs/integration_step.json``, ``docs/robustness.json`` and
+``docs/verdict_map.json``: the abstract's five figures, the paper's beside ours, and each at half
+and twice the integration step, as ``emasim reproduce`` measured them, their robustness over the
+plant uncertainty and where each verdict flips, as ``emasim reproduce --robustness`` measured
+them.
 
     python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's headline
-                                                   # (and robustness and verdict map, when it
-                                                   # has them) in docs/, rewrite the pages
+                                                   # and integration step (and robustness and
+                                                   # verdict map, when it has them) in docs/,
+                                                   # rewrite the pages
     python docs/readme_headline.py                 # rewrite the pages from docs/
 
 The README and docs/paper.md hold the headline table between ``<!-- headline:begin -->`` and
 ``<!-- headline:end -->``; docs/paper.md holds the robustness table between ``<!--
-robustness:begin -->`` and ``<!-- robustness:end -->``, and the verdict map's lines between
-``<!-- verdict-map:begin -->`` and ``<!-- verdict-map:end -->`` (:data:`PAGES`).
-``tests/test_reproduce.py`` checks that the blocks equal :func:`render`,
-:func:`render_robustness` and :func:`render_verdict_map` of the stored objects, that a fresh
-reproduction measures the stored headline and the stored map's nominal cells, and that its
-verdicts agree with the stored robustness; ``tests/test_verdict_map.py`` re-runs one cell of
-the stored map off the nominal bench. Standard library only, but for the map's lines
-(emasim.analysis.verdict_map).
+robustness:begin -->`` and ``<!-- robustness:end -->``, the integration step's table between
+``<!-- integration-step:begin -->`` and ``<!-- integration-step:end -->``, and the verdict
+map's lines between ``<!-- verdict-map:begin -->`` and ``<!-- verdict-map:end -->``
+(:data:`PAGES`). ``tests/test_reproduce.py`` checks that the blocks equal :func:`render`,
+:func:`render_robustness`, :func:`render_integration_step` and :func:`render_verdict_map` of
+the stored objects, that a fresh reproduction measures the stored headline, integration step
+and the stored map's nominal cells, and that its verdicts agree with the stored robustness;
+``tests/test_verdict_map.py`` re-runs one cell of the stored map off the nominal bench.
+Standard library only, but for the lines of the map and of the integration step
+(emasim.analysis.verdict_map, emasim.analysis.integration_step).
 """
 
 import json
@@ -29,14 +33,21 @@ ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "headline.json"
 ROBUSTNESS = ROOT / "docs" / "robustness.json"
 VERDICT_MAP = ROOT / "docs" / "verdict_map.json"
+INTEGRATION_STEP = ROOT / "docs" / "integration_step.json"
 README = ROOT / "README.md"
 PAPER = ROOT / "docs" / "paper.md"
 BLOCKS = {
     "headline": "<!-- headline:{}-->",
     "robustness": "<!-- robustness:{}-->",
     "verdict-map": "<!-- verdict-map:{}-->",
+    "integration-step": "<!-- integration-step:{}-->",
 }
-PAGES = {"headline": (README, PAPER), "robustness": (PAPER,), "verdict-map": (PAPER,)}
+PAGES = {
+    "headline": (README, PAPER),
+    "robustness": (PAPER,),
+    "verdict-map": (PAPER,),
+    "integration-step": (PAPER,),
+}
 NAMES = {  # headline key -> the tables' wording
     "step_steady_error_reduction": "step steady-state error (RMS)",
     "step_vibration_amplitude_reduction": "step vibration amplitude",
@@ -91,11 +102,18 @@ def map_wins(vmap: dict | None, key: str) -> str:
     return f"{counts[0]} / {counts[1]} of {len(entry['against']['PID'])}"
 
 
-def render(headline: dict, verdicts: dict | None = None, vmap: dict | None = None) -> str:
+def render(
+    headline: dict,
+    verdicts: dict | None = None,
+    vmap: dict | None = None,
+    steps: dict | None = None,
+) -> str:
     """The table of the headline object of tables.json: the paper's figures, ours as
     the bench measures them against both PID variants, the true angle's beside them and, with
     a robustness study (``verdicts``), the hybrid's win rate against each variant, and with a
-    verdict map (``vmap``) the cells of it the hybrid wins against each."""
+    verdict map (``vmap``) the cells of it the hybrid wins against each; then
+    :func:`verdict_line`, which names the verdicts that turn with the integration step
+    (``steps``, tables.json's integration_step object)."""
     lines = [
         "| headline figure (abstract) | paper: PID → hybrid | ours, measured: PID → hybrid "
         f"| ours, measured: {INDUSTRIAL} → hybrid | true angle: PID → hybrid "
@@ -120,7 +138,7 @@ def render(headline: dict, verdicts: dict | None = None, vmap: dict | None = Non
         rates = f"{win_rate(against.get('PID'))} / {win_rate(against.get(INDUSTRIAL))}"
         cells = map_wins(vmap, key)
         lines.append(f"| {words} | {paper}) | {ours} | {industrial} | {true} | {rates} | {cells} |")
-    return "\n".join([*lines, "", verdict_line(headline, verdicts)])
+    return "\n".join([*lines, "", verdict_line(headline, verdicts, steps)])
 
 
 def wins_against(headline: dict, label: str) -> list[str]:
@@ -151,19 +169,44 @@ def settled(verdicts: dict | None, label: str) -> bool:
     return True
 
 
-def verdict_line(headline: dict, verdicts: dict | None = None) -> str:
+def turning(steps: dict | None, label: str) -> list[str]:
+    """The figures whose verdict against ``label`` turns with the integration step
+    (emasim.analysis.integration_step), in the headline's order."""
+    from emasim.analysis.integration_step import TURNS, verdict
+
+    return [
+        words
+        for key, words in NAMES.items()
+        if key in (steps or {})
+        and label in steps[key]["values"]
+        and verdict(steps[key], label) == TURNS
+    ]
+
+
+def verdict_line(headline: dict, verdicts: dict | None = None, steps: dict | None = None) -> str:
     """Which figures the hybrid wins on the nominal bench, as measured, against each PID
-    variant; 'all five' only where the Monte Carlo settles all five for it too."""
-    parts = []
+    variant ('all five' only where the Monte Carlo settles all five for it too and none turns
+    with the integration step); then, given ``steps``, the verdicts that turn with it."""
+    parts, unsettled = [], []
     for label in ("PID", INDUSTRIAL):
         wins = wins_against(headline, label)
-        if len(wins) == len(NAMES) and settled(verdicts, label):
+        turned = turning(steps, label)
+        if turned:
+            unsettled.append(f"against {'the ' if label == INDUSTRIAL else ''}{label}, "
+                             f"{' and '.join(turned)}")  # fmt: skip
+        if len(wins) == len(NAMES) and settled(verdicts, label) and not turned:
             parts.append(f"{label} on all five figures, on the nominal bench and over the plants")
         elif not wins:
             parts.append(f"{label} on none of the five figures")
         else:
             parts.append(f"{label} on {len(wins)} of the five ({', '.join(wins)})")
-    return "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
+    line = "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
+    if unsettled:
+        line += (
+            " At half or twice the integration step the verdict turns (the simulation does not "
+            "settle it) " + "; ".join(unsettled) + "."
+        )
+    return line
 
 
 def signed(x: float | None) -> str:
@@ -239,10 +282,18 @@ def block_of(text: str, name: str) -> str:
     return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
 
 
-def write_pages(headline: dict, verdicts: dict, vmap: dict) -> None:
+def render_integration_step(steps: dict) -> str:
+    """The integration step's table and lines (emasim.analysis.integration_step)."""
+    from emasim.analysis.integration_step import step_lines, table_markdown
+
+    return table_markdown(steps) + "\n\n" + "\n".join(f"- {line}" for line in step_lines(steps))
+
+
+def write_pages(headline: dict, verdicts: dict, vmap: dict, steps: dict) -> None:
     """Rewrite each block on each of its :data:`PAGES`."""
     blocks = {
-        "headline": render(headline, verdicts, vmap),
+        "headline": render(headline, verdicts, vmap, steps),
+        "integration-step": render_integration_step(steps),
         "robustness": render_robustness(verdicts, headline),
         "verdict-map": render_verdict_map(vmap),
     }
@@ -261,6 +312,7 @@ def main() -> None:
     if len(sys.argv) > 1:
         tables = json.loads((Path(sys.argv[1]) / "tables.json").read_text())
         STORE.write_text(json.dumps(tables["headline"], indent=1) + "\n")
+        INTEGRATION_STEP.write_text(json.dumps(tables["integration_step"], indent=1) + "\n")
         if "robustness" in tables:
             ROBUSTNESS.write_text(json.dumps(tables["robustness"], indent=1) + "\n")
         if "verdict_map" in tables:
@@ -269,6 +321,7 @@ def main() -> None:
         json.loads(STORE.read_text()),
         json.loads(ROBUSTNESS.read_text()),
         json.loads(VERDICT_MAP.read_text()),
+        json.loads(INTEGRATION_STEP.read_text()),
     )
 
 

@@ -71,9 +71,11 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     readme = module.README.read_text()
     robust = json.loads(module.ROBUSTNESS.read_text())
     vmap = json.loads(module.VERDICT_MAP.read_text())
+    steps = json.loads(module.INTEGRATION_STEP.read_text())
     assert module.PAGES["headline"] == (module.README, module.PAPER)
     for page in module.PAGES["headline"]:
-        assert module.block_of(page.read_text(), "headline") == module.render(stored, robust, vmap)
+        expected = module.render(stored, robust, vmap, steps)
+        assert module.block_of(page.read_text(), "headline") == expected
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
@@ -82,7 +84,24 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
             ours = measured[key]["variants"][label]["value"]
             assert ours == pytest.approx(variant["value"], rel=1e-9), (key, label)
     # the README's verdict line (part of the block) is the one this reproduction measures
-    assert module.verdict_line(measured, robust) in readme
+    assert module.verdict_line(measured, robust, steps) in readme
+
+
+def test_the_integration_step_table_is_the_one_this_reproduction_measures(report):
+    """docs/paper.md's integration-step block is docs/integration_step.json rendered, and a
+    fresh reproduction measures those figures at every step."""
+    module = module_at("docs/readme_headline.py")
+    stored = json.loads(module.INTEGRATION_STEP.read_text())
+    page = module.PAPER.read_text()
+    assert module.block_of(page, "integration-step") == module.render_integration_step(stored)
+    measured = json.loads((report / "tables.json").read_text())["integration_step"]
+    assert measured.keys() == stored.keys() == set(HEADLINE)
+    for key, entry in stored.items():
+        assert measured[key]["step_s"] == entry["step_s"]
+        for label, values in entry["values"].items():
+            assert measured[key]["values"][label] == pytest.approx(values, rel=1e-9), key
+    text = (report / "report.md").read_text()
+    assert "## The integration step" in text and "turns with the integration step" in text
 
 
 def test_the_readme_gives_the_hybrid_against_each_pid_variant_with_its_win_rates():
@@ -135,6 +154,22 @@ def test_the_readmes_verdict_line_says_all_five_only_when_the_monte_carlo_settle
         "nominal bench and over the plants."
     )
     assert "PID on 5 of the five" in module.verdict_line(items)  # no Monte Carlo: no "all"
+    holding = {"values": {"PID": [1.0, 1.0, 1.0], "hybrid": [0.5, 0.6, 0.4]}}
+    turning = {"values": {"PID": [1.0, 1.0, 1.0], module.INDUSTRIAL: [0.5, 0.5, 0.5]}}
+    turning["values"]["hybrid"] = [0.4, 0.45, 0.6]  # beats PID at every step, not the other
+    steps = {
+        "sine_speed_fluctuation_reduction": turning,
+        "step_vibration_amplitude_reduction": holding,
+    }
+    line = module.verdict_line(items, verdicts, steps)
+    assert line.startswith(  # a verdict that turns with the step is never among "all five"
+        "As measured on the nominal bench, the hybrid beats PID on all five figures, on the "
+        "nominal bench and over the plants; and the industrial PID on 5 of the five ("
+    )
+    assert line.endswith(
+        "At half or twice the integration step the verdict turns (the simulation does not "
+        "settle it) against the industrial PID, sine speed fluctuation."
+    )
     items["step_speed_fluctuation_reduction"]["hybrid_better"] = False
     items["sine_displacement_lag_reduction"]["variants"][module.INDUSTRIAL] = {"value": 0.1}
     against_pid, against_industrial = module.verdict_line(items, verdicts).split("; and the ")
@@ -240,6 +275,8 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
     looser = ("PI", "fuzzy-PI")  # the position laws whose load dip is 0.7 to 0.8 mm
     bench, sine_bench = m["bench-step"], m["bench-sine"]
     pid, hybrid = bench["PID"], bench["hybrid"]
+    tables = json.loads((report / "tables.json").read_text())["integration_step"]
+    steps = {key: entry["values"] for key, entry in tables.items()}  # half, shipped, twice
     claims = {  # the notes' words -> ((measured, written), ...)
         "reads a steady RMS error of 0.026 deg": ((pid["steady_error_rms_deg"], "0.026"),),
         "its true angle sits 0.035 deg RMS off the target and moves by 0.024 deg": (
@@ -258,6 +295,14 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
             (sine_bench["hybrid"]["tracking_error_deg"], "0.08"),
             (sine_bench["PID"]["tracking_error_deg"], "0.14"),
             (sine_bench["industrial PID"]["tracking_error_deg"], "0.082"),
+        ),
+        "at twice the step the industrial PID lags less (0.082 against 0.086 deg)": (
+            (steps["sine_displacement_lag_reduction"]["industrial PID"][2], "0.082"),
+            (steps["sine_displacement_lag_reduction"]["hybrid"][2], "0.086"),
+        ),
+        "step the hybrid's speed fluctuation is the lower (1.29 against 1.47 deg/s)": (
+            (steps["sine_speed_fluctuation_reduction"]["hybrid"][0], "1.29"),
+            (steps["sine_speed_fluctuation_reduction"]["industrial PID"][0], "1.47"),
         ),
         "Ours settles in 0.3 to 0.4 s": (
             (min(r["settling_time_s"] for r in pos.values()), "0.3"),

@@ -10,7 +10,7 @@ import pytest
 from helpers import module_at
 
 from emasim.analysis.plots import plot_verdict_map
-from emasim.analysis.verdict_map import cell_at, flip_line, flips, markdown
+from emasim.analysis.verdict_map import cell_at, flip_line, flips, margin, markdown
 from emasim.experiments.batch import run_all
 from emasim.experiments.robustness import BASELINES, figures
 from emasim.experiments.store import OK
@@ -22,7 +22,6 @@ from emasim.experiments.verdict_map import (
     NOMINAL,
     cells,
     latest,
-    margin,
     spec_for,
     verdict_map,
 )

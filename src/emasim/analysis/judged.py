@@ -60,3 +60,9 @@ HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
 PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
 INDUSTRIAL_LABEL = "industrial PID"  # velocity and acceleration feed-forward
 ABLATED_TABLES = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
+
+
+def headline_metric(key: str) -> tuple[str, str]:
+    """(our metric key, unit) of a headline figure (a key of HEADLINE)."""
+    experiment, row, _ = HEADLINE[key]
+    return ABLATED_TABLES[experiment][row]

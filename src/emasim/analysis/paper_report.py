@@ -5,8 +5,9 @@ hands their metrics and figures to :func:`build_tables` and :func:`write_report`
 reproduce`` writes, atomically:
 ``report.md`` and ``report.html`` (figures, tables 2-7 and the simulation figures' numbers with
 the paper's values beside ours, the five headline figures of the abstract, the ablation of the
-bench's elements, the assumptions and the tuning record), ``tables.json`` (the same numbers for
-machines, with a ``headline`` object and an ``ablation`` list),
+bench's elements, the headline figures at half and twice the integration step, the assumptions
+and the tuning record), ``tables.json`` (the same numbers for machines, with a ``headline``
+object, an ``integration_step`` object and an ``ablation`` list),
 ``figures/*.png`` and ``runs/<experiment>/`` (every run, with its scenario and metadata).
 The paper's numbers are in ``paper_results.toml`` beside this module (transcribed from the text).
 """
@@ -27,6 +28,7 @@ from .judged import (
     HEADLINE,
     HYBRID_LABEL,
     PID_LABEL,
+    headline_metric,
 )
 from .pareto import equal_chatter_table
 from .report import (
@@ -133,9 +135,8 @@ def headline(paper: dict, tables: dict) -> dict:
     """The abstract's five figures: paper values from its tables, ours from the same metric,
     and the hybrid against each further PID variant its experiment compares (``variants``)."""
     out = {}
-    for name, (experiment, row_key, definition) in HEADLINE.items():
-        rows = BENCH_STEP_ROWS if experiment == "bench_step" else BENCH_SINE_ROWS
-        our_key, unit = rows[row_key]
+    for name, (experiment, _, definition) in HEADLINE.items():
+        our_key, unit = headline_metric(name)
         (row,) = [r for r in tables[experiment] if r["metric"] == our_key]
         out[name] = {
             "paper_pid": row["paper_pid"],
@@ -651,6 +652,10 @@ def write_report(
             "No verdict map of these experiments and this emasim version yet: "
             "`emasim reproduce --robustness` makes one with the Monte Carlo.",
         ]
+    if tables.get("integration_step"):
+        from .integration_step import markdown as integration_step_markdown
+
+        parts += integration_step_markdown(tables["integration_step"])
     if tables.get("components"):
         parts += _components_markdown(tables["components"])
     for exp in EXPERIMENTS:

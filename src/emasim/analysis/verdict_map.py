@@ -26,6 +26,18 @@ def _shown(axis: str, value) -> str:
     return f"{value:g} {unit}" if unit else str(value)
 
 
+def margin(baseline: float, hybrid: float) -> float:
+    """100 (|baseline| - |hybrid|) / |baseline| of two magnitudes: 100 when only the baseline
+    diverged (inf), -inf when only the hybrid did, 0 when both did or both are 0."""
+    if math.isinf(baseline):
+        return 0.0 if math.isinf(hybrid) else 100.0
+    if math.isinf(hybrid):
+        return -math.inf
+    if baseline == 0.0:
+        return 0.0 if hybrid == 0.0 else -math.inf
+    return 100.0 * (baseline - hybrid) / baseline
+
+
 def margin_of(cell: dict) -> float:
     """The cell's margin (%), -inf where tables.json holds null."""
     value = cell["margin_pct"]

@@ -35,13 +35,6 @@ STAGES = (
 )
 
 
-def _revalidated(scenario: Scenario, **changes) -> Scenario:
-    """The scenario with top-level fields replaced, validated again as a whole."""
-    data = scenario.model_dump(mode="json", exclude_none=True)
-    data.update({k: v.model_dump(mode="json", exclude_none=True) for k, v in changes.items()})
-    return Scenario.model_validate(data)
-
-
 def without_stage(plant, stage: str):
     """The plant without the elements of ``stage`` (their declared ablation stage,
     emasim.plant.element.Element.stage), with what each one's removal changes elsewhere."""
@@ -53,7 +46,7 @@ def without_stage(plant, stage: str):
 
 
 def _without_load_motor(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=without_stage(sc.plant, "load motor"))
+    return sc.revalidated(plant=without_stage(sc.plant, "load motor"))
 
 
 def _without_digital_drive(sc: Scenario) -> Scenario:
@@ -64,19 +57,19 @@ def _without_digital_drive(sc: Scenario) -> Scenario:
     )
     sensors = bench_sensors() if sc.sensors == bench_digital_sensors() else sc.sensors
     loop = sc.loop.model_copy(update={"computation_delay_s": 0.0})
-    return _revalidated(sc, plant=plant, sensors=sensors, loop=loop)
+    return sc.revalidated(plant=plant, sensors=sensors, loop=loop)
 
 
 def _without_compliance(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=without_stage(sc.plant, "compliance"))
+    return sc.revalidated(plant=without_stage(sc.plant, "compliance"))
 
 
 def _without_rudder_feedback(sc: Scenario) -> Scenario:
-    return _revalidated(sc, loop=sc.loop.model_copy(update={"position_feedback": "rod"}))
+    return sc.revalidated(loop=sc.loop.model_copy(update={"position_feedback": "rod"}))
 
 
 def _without_linkage(sc: Scenario) -> Scenario:
-    return _revalidated(sc, plant=without_stage(sc.plant, "linkage"))
+    return sc.revalidated(plant=without_stage(sc.plant, "linkage"))
 
 
 _TAKE_OUT = (  # what takes each stage back to the one before it, from the last stage down

@@ -1,8 +1,9 @@
 """The paper's experiments, run: every shipped paper scenario's comparison, the hinge
-clearance sweep, the ablation of the bench's elements and the hybrid part by part
-(emasim.experiments.components); with ``robustness_runs``, the Monte Carlo, the wear study and
-the verdict map (emasim.experiments.verdict_map) too, else their latest studies; rendered by
-:mod:`emasim.analysis.paper_report` into one report folder."""
+clearance sweep, the ablation of the bench's elements, the hybrid part by part
+(emasim.experiments.components) and the bench experiments at half and twice their
+integration step (emasim.experiments.integration_step); with ``robustness_runs``, the Monte
+Carlo, the wear study and the verdict map (emasim.experiments.verdict_map) too, else their
+latest studies; rendered by :mod:`emasim.analysis.paper_report` into one report folder."""
 
 import math
 import time
@@ -29,6 +30,7 @@ from . import verdict_map, wear
 from .ablation import STAGES, ablation_jobs, ablation_table
 from .batch import Job, comparison_of
 from .components import component_jobs, component_tables
+from .integration_step import step_jobs, step_table
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
 from .store import METRICS_FILE, RUN_ID, Store, keyed, run_id_of
@@ -79,7 +81,8 @@ def _ablated(chosen: dict, with_ablation: bool) -> dict:
 def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
     """The reproduction's runs by group: each ``chosen`` experiment's controller sets (their
     traces kept, for the figures and the report's run folders), the clearance sweep (when
-    cosim-step is among them), the ablation of the bench ones and the hybrid part by part;
+    cosim-step is among them), the ablation of the bench ones, the hybrid part by part and
+    the bench ones at half and twice their integration step;
     each job's run id names its group, tags and label."""
     ablated = _ablated(chosen, with_ablation)
     groups = {
@@ -91,6 +94,7 @@ def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
         "sweep": sweep_jobs() if "cosim-step" in chosen else [],
         "ablation": ablation_jobs(ablated, ablated, labels=LABELS),
         "components": component_jobs(chosen),
+        "integration_step": step_jobs(chosen),
     }
     return {
         group: [
@@ -143,6 +147,11 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
             groups["components"],
             metrics["components"],
             {name: c.metrics for name, c in comparisons.items()},
+        )
+    if groups["integration_step"]:
+        shipped = {name: c.metrics for name, c in comparisons.items()}
+        tables["integration_step"] = step_table(
+            chosen, groups["integration_step"], metrics["integration_step"], shipped
         )
     ablated = _ablated(chosen, with_ablation)
     if ablated:

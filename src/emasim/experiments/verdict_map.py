@@ -22,6 +22,7 @@ where each verdict flips.
 import math
 
 from ..analysis.judged import HYBRID_LABEL
+from ..analysis.verdict_map import margin
 from ..plant.presets import LOADER_RATED_TORQUE_NM, absolute_rudder_encoder, ttl_rudder_encoder
 from .robustness import BASELINES, ROOT, SCENARIOS, figures, study_key
 from .store import OK
@@ -136,15 +137,3 @@ def verdict_map(tables: dict) -> dict:
             against[baseline] = rows
         out["figures"][name] = {"scenario": scenario, "metric": metric, "against": against}
     return out
-
-
-def margin(baseline: float, hybrid: float) -> float:
-    """100 (|baseline| - |hybrid|) / |baseline|: 100 when only the baseline diverged, -inf when
-    only the hybrid did, 0 when both did or both are 0."""
-    if math.isinf(baseline):
-        return 0.0 if math.isinf(hybrid) else 100.0
-    if math.isinf(hybrid):
-        return -math.inf
-    if baseline == 0.0:
-        return 0.0 if hybrid == 0.0 else -math.inf
-    return 100.0 * (baseline - hybrid) / baseline

@@ -460,6 +460,14 @@ class Scenario(Strict):
             for v in self.compare
         ]
 
+    def revalidated(self, **changes) -> "Scenario":
+        """This scenario with top-level fields replaced (``solver=...``, ``plant=...``),
+        validated again as a whole: a change that breaks a rule across sections (a delay that
+        is no whole number of the new step) is refused as in a scenario file."""
+        data = self.model_dump(mode="json", exclude_none=True)
+        data.update({k: v.model_dump(mode="json", exclude_none=True) for k, v in changes.items()})
+        return Scenario.model_validate(data)
+
     def experiment(self) -> "Experiment":
         """What this scenario's run makes, typed, for its metrics and figures
         (emasim.sim.result.Experiment)."""
