@@ -192,7 +192,7 @@ def verdict_line(headline: dict, verdicts: dict | None = None, steps: dict | Non
         wins = wins_against(headline, label)
         turned = turning(steps, label)
         if turned:
-            unsettled.append(f"against {'the ' if label == INDUSTRIAL else ''}{label}, "
+            unsettled.append(f"against {'the ' if label == INDUSTRIAL else ''}{label} on "
                              f"{' and '.join(turned)}")  # fmt: skip
         if len(wins) == len(NAMES) and settled(verdicts, label) and not turned:
             parts.append(f"{label} on all five figures, on the nominal bench and over the plants")
@@ -203,8 +203,8 @@ def verdict_line(headline: dict, verdicts: dict | None = None, steps: dict | Non
     line = "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
     if unsettled:
         line += (
-            " At half or twice the integration step the verdict turns (the simulation does not "
-            "settle it) " + "; ".join(unsettled) + "."
+            " The verdicts " + " and ".join(unsettled) + " turn at half or twice the integration "
+            "step: the simulation does not settle them."
         )
     return line
 

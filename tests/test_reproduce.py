@@ -167,8 +167,8 @@ def test_the_readmes_verdict_line_says_all_five_only_when_the_monte_carlo_settle
         "nominal bench and over the plants; and the industrial PID on 5 of the five ("
     )
     assert line.endswith(
-        "At half or twice the integration step the verdict turns (the simulation does not "
-        "settle it) against the industrial PID, sine speed fluctuation."
+        " The verdicts against the industrial PID on sine speed fluctuation turn at half or "
+        "twice the integration step: the simulation does not settle them."
     )
     items["step_speed_fluctuation_reduction"]["hybrid_better"] = False
     items["sine_displacement_lag_reduction"]["variants"][module.INDUSTRIAL] = {"value": 0.1}
