@@ -8,6 +8,7 @@ result) equals what the in-memory trace gives. SPOOL_BYTES is made small here so
 a fraction of a second streams; its real value only sets the size of a row group.
 """
 
+import contextlib
 import errno
 import io
 import json
@@ -20,6 +21,7 @@ import pyarrow.parquet as pq
 import pytest
 from typer.testing import CliRunner
 
+from emasim import output
 from emasim.analysis import figure_process
 from emasim.analysis.report import step_metrics
 from emasim.cli import app
@@ -155,6 +157,37 @@ def test_metrics_and_saved_files_of_a_streamed_run_equal_the_whole_runs(
         assert isinstance(back.data, ParquetTraces) == (fmt == "parquet")
         assert np.array_equal(np.asarray(back.data), whole.data, equal_nan=True)
         _same_metrics(back.metrics, json.loads((b / "metrics.json").read_text()))
+
+
+def test_a_streamed_runs_csv_is_written_a_row_group_at_a_time(small_groups, tmp_path, monkeypatch):
+    """Result.to_csv of a spooled trace holds one row group's text at a time, never the whole
+    file's, and writes the bytes the in-memory run writes."""
+    scenario = _scenario()
+    streamed = run_scenario(scenario)
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(spool, "SPOOL_BYTES", 2**40)
+        whole = run_scenario(scenario)
+    expected = whole.to_csv(tmp_path / "whole.csv").read_bytes()
+    writes, real = [], output.new_file
+
+    class Counted:  # the file's handle, counting what each write hands it
+        def __init__(self, handle):
+            self.handle = handle
+
+        def write(self, block: bytes) -> int:
+            writes.append(len(block))
+            return self.handle.write(block)
+
+    @contextlib.contextmanager
+    def counted(path):
+        with real(path) as handle:
+            yield Counted(handle)
+
+    monkeypatch.setattr(output, "new_file", counted)
+    assert streamed.to_csv(tmp_path / "streamed.csv").read_bytes() == expected
+    groups = pq.ParquetFile(streamed.data.handle).num_row_groups
+    assert len(writes) == 1 + groups > 10  # the header, then each row group
+    assert sum(writes) == len(expected) and max(writes) < len(expected) / 10
 
 
 def _same_metrics(streamed: dict, whole: dict) -> None:

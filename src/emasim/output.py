@@ -27,7 +27,7 @@ import errno
 import fcntl
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from .errors import OutputError
@@ -42,6 +42,7 @@ _LINE = "{0.st_dev}:{0.st_ino} {1}"  # a journal line: a file's inode, its name
 _LIBC = ctypes.CDLL(None, use_errno=True)
 _RENAMEAT2 = getattr(_LIBC, "renameat2", None)  # glibc >= 2.28
 _LINKAT = getattr(_LIBC, "linkat", None)
+Content = str | bytes | Iterable[str | bytes]  # what a new file is written from
 
 
 def _beside(path: Path, kind: str) -> Path:
@@ -145,10 +146,12 @@ def _journal(build: Path, line: str) -> None:
         journal.write(os.fsencode(f"{line}\n"))
 
 
-def write_new(path: Path, content: str | bytes) -> None:
-    """Write ``content`` (text, as UTF-8, or bytes) to a new file through :func:`new_file`."""
+def write_new(path: Path, content: Content) -> None:
+    """Write ``content`` (text, as UTF-8, or bytes, or an iterable of them written one block at
+    a time) to a new file through :func:`new_file`."""
     with new_file(path) as handle:
-        handle.write(content.encode() if isinstance(content, str) else content)
+        for block in [content] if isinstance(content, str | bytes) else content:
+            handle.write(block.encode() if isinstance(block, str) else block)
 
 
 def check_parents(path: Path, what: str) -> None:
@@ -291,11 +294,12 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
     return published
 
 
-def write_file(path: Path, content: bytes | str | Path, *, force: bool = False,
+def write_file(path: Path, content: Content | Path, *, force: bool = False,
                is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0], listed: bool = False) -> Path:  # fmt: skip
-    """Write ``content`` (bytes, text, or a file's path to copy) to the file ``path`` as the
-    module docstring says; ``listed``: into an emasim result, whose manifest then lists it."""
+    """Write ``content`` (as :func:`write_new` takes it, or a file's path to copy) to the file
+    ``path`` as the module docstring says; ``listed``: into an emasim result, whose manifest then
+    lists it."""
     path = Path(path)
     check_file(path, force, is_ours, what, replace_hint)
 

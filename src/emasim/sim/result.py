@@ -232,10 +232,6 @@ class Result:
         for block in self.data.row_groups() if spooled else [self.data]:
             yield "".join(",".join(map(repr, row)) + "\n" for row in block.tolist())
 
-    def _csv(self) -> str:
-        """The traces as CSV text (:meth:`_csv_blocks`)."""
-        return "".join(self._csv_blocks())
-
     def _mat(self) -> bytes:
         """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
         per column (a column vector), ``units`` (column -> unit), ``scenario`` and ``label``."""
@@ -252,9 +248,10 @@ class Result:
         return buffer.getvalue()
 
     def to_csv(self, path: str | Path, overwrite: bool = False) -> Path:
-        """Write the traces as CSV (:meth:`_csv`) to the file ``path``, atomically;
-        ``overwrite`` replaces a trace file emasim wrote there, never any other file."""
-        return write_file(Path(path), self._csv(), force=overwrite, is_ours=_is_trace_csv,
+        """Write the traces as CSV (:meth:`_csv_blocks`, a block at a time) to the file
+        ``path``, atomically; ``overwrite`` replaces a trace file emasim wrote there, never any
+        other file."""
+        return write_file(Path(path), self._csv_blocks(), force=overwrite, is_ours=_is_trace_csv,
                           what="path", replace_hint=OVERWRITE_HINT)  # fmt: skip
 
     def to_mat(self, path: str | Path, overwrite: bool = False) -> Path:
@@ -309,9 +306,7 @@ class Result:
                 with new_file(path) as handle:
                     self._write_parquet(handle)
             elif trace_format == "csv":
-                with new_file(path) as handle:
-                    for block in self._csv_blocks():
-                        handle.write(block.encode())
+                write_new(path, self._csv_blocks())
             else:
                 write_new(path, self._mat())
         meta = self.meta
