@@ -32,12 +32,12 @@ from pathlib import Path
 import numpy as np
 
 from emasim.experiments.variation import FACTOR
+from emasim.page_blocks import write_block
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "fault_identification.json"
 DOCS = ROOT / "docs" / "calibration.md"
-BEGIN = "<!-- fault-identification:begin -->"
-END = "<!-- fault-identification:end -->"
+BLOCK = "fault-identification"
 SCENARIO = "bench-identify"
 SEED = 0
 PLANTS = 20
@@ -162,11 +162,10 @@ def summary_line(row: dict) -> str:
 
 
 def render(results: dict) -> str:
-    """The docs block: the score and each plant's row."""
+    """The docs block's body: the score and each plant's row."""
     rows = results["plants"]
     by_key = ", ".join(f"{NAMES[key]} {n}/{len(rows)}" for key, n in results["by_key"].items())
     lines = [
-        BEGIN,
         "",
         f"**{results['recovered']} of {len(rows)} plants** had all three values recovered "
         f"({by_key}); a fit took {results['seconds_median']:.0f} s (median), "
@@ -188,11 +187,7 @@ def render(results: dict) -> str:
             f"| {row['plant']} | " + " | ".join(cells) + f" | {row['simulations']} "
             f"| {row['seconds']:.0f} |"
         )
-    return "\n".join([*lines, "", END])
-
-
-def block_of(text: str) -> str:
-    return text[text.index(BEGIN) : text.index(END) + len(END)]
+    return "\n".join([*lines, ""])
 
 
 def main() -> int:
@@ -208,8 +203,7 @@ def main() -> int:
     )
     if args.write and not args.quick:
         RESULTS.write_text(json.dumps(results, indent=1) + "\n")
-        text = DOCS.read_text()
-        DOCS.write_text(text.replace(block_of(text), render(results)))
+        write_block(DOCS, BLOCK, render(results))
     return 0
 
 

@@ -29,12 +29,13 @@ import sys
 import time
 from pathlib import Path
 
+from emasim.page_blocks import write_block
+
 ROOT = Path(__file__).resolve().parents[1]
 EMPS = ROOT.parent / "shared" / "data" / "emps"
 DOCS = ROOT / "docs" / "calibration.md"
 FIGURE = ROOT / "docs" / "emps-fit.png"
-BEGIN = "<!-- emps-figures:begin -->"
-END = "<!-- emps-figures:end -->"
+BLOCK = "emps-figures"
 TRAIN = "DATA_EMPS.mat"
 PULSES = "DATA_EMPS_PULSES.mat"
 
@@ -229,9 +230,9 @@ def _within(ours: float, theirs: float) -> str:
 
 
 def render(results: dict) -> str:
-    """The docs block: markdown tables of :func:`measure`'s figures."""
+    """The docs block's body: markdown tables of :func:`measure`'s figures."""
     pub = results["published"]
-    lines = [BEGIN, ""]
+    lines = [""]
     for name, title in (("symmetric", "symmetric friction"), ("asymmetric", "asymmetric")):
         ours = results[name]
         lines += [
@@ -300,7 +301,6 @@ def render(results: dict) -> str:
         + " and ".join(f"{v:.3g} % with {k}" for k, v in results["delay_force_pct"].items())
         + " of delay, so emps.toml applies the command from its own sample.",
         "",
-        END,
     ]
     return "\n".join(lines)
 
@@ -313,18 +313,12 @@ def without_seconds(block: str) -> str:
     return SECONDS.sub("<s>", block)
 
 
-def block_of(text: str) -> str:
-    """The docs' block, markers included."""
-    return text[text.index(BEGIN) : text.index(END) + len(END)]
-
-
 def write(results: dict) -> None:
     """Rewrite the docs block and draw the figure of the symmetric fit."""
     from emasim.analysis.figure_process import DrawHere
     from emasim.analysis.identification_plots import fit_figure
 
-    text = DOCS.read_text()
-    DOCS.write_text(text.replace(block_of(text), render(results)))
+    write_block(DOCS, BLOCK, render(results))
     fit = results["figure"]
     outputs = [n.removeprefix("measured_") for n in fit.traces if n.startswith("measured_")]
     measured = {n: fit.traces[f"measured_{n}"] for n in outputs}

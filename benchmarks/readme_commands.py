@@ -16,11 +16,13 @@ between ``<!-- commands:begin -->`` and ``<!-- commands:end -->``, written by :f
 and ``tests/test_readme.py`` checks the block against the stored JSON (it times nothing).
 
 Not named ``bench_*.py``: CI runs those with ``--quick``, and this one takes minutes. Standard
-library only.
+library only: it needs no installed emasim, and reads ``src/emasim/page_blocks.py`` (standard
+library too) from the file.
 """
 
 import argparse
 import datetime
+import importlib.util
 import json
 import os
 import re
@@ -35,7 +37,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 STORE = ROOT / "benchmarks" / "readme_commands.json"
-BEGIN, END = "<!-- commands:begin -->", "<!-- commands:end -->"
+PAGE_BLOCKS = ROOT / "src" / "emasim" / "page_blocks.py"
+BLOCK = "commands"
 SECTION = "## Two commands"
 NAMES = ("run", "test")  # the section's commands, in order: install and run, install and test
 TIMEOUT_S = 3600
@@ -151,8 +154,8 @@ def minutes(seconds: float) -> str:
 
 
 def render(stored: dict) -> str:
-    """The README's text between the markers (ends with a newline), wrapped as the README's
-    prose is."""
+    """The README's text between the markers (emasim.page_blocks' rule), wrapped as the
+    README's prose is."""
     run, test = (stored["commands"][name] for name in NAMES)
     loads = [stored["commands"][name]["load_average_at_start"] for name in NAMES]
     busy = max(loads) >= 1
@@ -172,19 +175,14 @@ def render(stored: dict) -> str:
         + ("), so a quiet machine of that size takes less." if busy else ").")
         + " `benchmarks/readme_commands.py` measures again."
     )
-    return textwrap.fill(text, 96, break_on_hyphens=False, break_long_words=False) + "\n"
-
-
-def block_of(text: str) -> str:
-    """The text between the markers (their own lines excluded)."""
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    return text[start : text.index(END, start)]
+    return textwrap.fill(text, 96, break_on_hyphens=False, break_long_words=False)
 
 
 def write_readme(stored: dict) -> None:
-    text = README.read_text()
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    README.write_text(text[:start] + render(stored) + text[text.index(END, start) :])
+    spec = importlib.util.spec_from_file_location("page_blocks", PAGE_BLOCKS)
+    page_blocks = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page_blocks)
+    page_blocks.write_block(README, BLOCK, render(stored))
 
 
 def main() -> None:

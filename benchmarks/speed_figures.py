@@ -20,11 +20,12 @@ import json
 import math
 from pathlib import Path
 
+from emasim.page_blocks import write_block
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results.json"
 PAGE = ROOT / "docs" / "speed.md"
-BEGIN = "<!-- speed-figures:begin -->"
-END = "<!-- speed-figures:end -->"
+BLOCK = "speed-figures"
 MISSING = "not measured"
 
 RTF_HOW = "best of 3 runs in one process, compiled code loaded"
@@ -328,7 +329,7 @@ def fmu_rows(results: dict) -> list[tuple[str, str, str]]:
 
 
 def render(results: dict) -> str:
-    """The Markdown between the page's markers (ends with a newline)."""
+    """The Markdown between the page's markers (emasim.page_blocks' rule)."""
     lines = []
     if results.get("quick"):
         lines += [
@@ -349,22 +350,11 @@ def render(results: dict) -> str:
     rows = rtf_rows(results) + peer_rows(results) + process_rows(results)
     rows += memory_rows(results) + fmu_rows(results)
     lines += [f"| {what} | {how} | {figure} |" for what, how, figure in rows]
-    return "\n".join(lines) + "\n"
-
-
-def block_of(text: str) -> str:
-    """The text between the markers (their own lines excluded)."""
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    return text[start : text.index(END, start)]
-
-
-def replace_block(text: str, block: str) -> str:
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    return text[:start] + block + text[text.index(END, start) :]
+    return "\n".join(lines)
 
 
 def write_page(results: dict, path: Path = PAGE) -> None:
-    path.write_text(replace_block(path.read_text(), render(results)))
+    write_block(path, BLOCK, render(results))
 
 
 def main() -> None:

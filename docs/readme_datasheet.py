@@ -7,8 +7,8 @@ figures ``emasim acceptance bench-step`` measured for bench-step's controller se
 
 docs/acceptance.md holds the table between ``<!-- datasheet:begin -->`` and
 ``<!-- datasheet:end -->`` (the file keeps its name from when the README held it);
-``tests/test_acceptance.py`` checks that the block equals :func:`render` of the stored sheet.
-Standard library only.
+(emasim.page_blocks' rule); ``tests/test_acceptance.py`` checks that the block equals
+:func:`render` of the stored sheet.
 """
 
 import json
@@ -16,11 +16,13 @@ import shutil
 import sys
 from pathlib import Path
 
+from emasim.page_blocks import write_block
+
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "datasheet.json"
 BODE = ROOT / "docs" / "acceptance-bode.png"
 PAGE = ROOT / "docs" / "acceptance.md"
-BEGIN, END = "<!-- datasheet:begin -->", "<!-- datasheet:end -->"
+BLOCK = "datasheet"
 ROWS = (  # datasheet key, the table's wording, unit
     ("bandwidth_small_Hz", "bandwidth (-3 dB), small signal", "Hz"),
     ("phase_90_small_Hz", "-90 deg phase, small signal", "Hz"),
@@ -41,7 +43,7 @@ def number(x) -> str:
 
 
 def render(sheet: dict) -> str:
-    """The Markdown between the page's markers (ends with a newline)."""
+    """The Markdown between the page's markers."""
     labels = list(sheet["sets"])
     first = sheet["sets"][labels[0]]
     lines = [
@@ -52,12 +54,7 @@ def render(sheet: dict) -> str:
     for key, name, unit in ROWS:
         cells = " | ".join(number(sheet["sets"][label][key]) for label in labels)
         lines.append(f"| {name} | {unit} | {cells} |")
-    return "\n".join(lines) + "\n"
-
-
-def block_of(text: str) -> str:
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    return text[start : text.index(END, start)]
+    return "\n".join(lines)
 
 
 def main() -> None:
@@ -65,10 +62,7 @@ def main() -> None:
         folder = Path(sys.argv[1])
         STORE.write_text((folder / "datasheet.json").read_text())
         shutil.copyfile(folder / "bode.png", BODE)
-    text = PAGE.read_text()
-    start = text.index(BEGIN + "\n") + len(BEGIN) + 1
-    sheet = json.loads(STORE.read_text())
-    PAGE.write_text(text[:start] + render(sheet) + text[text.index(END, start) :])
+    write_block(PAGE, BLOCK, render(json.loads(STORE.read_text())))
 
 
 if __name__ == "__main__":

@@ -21,13 +21,15 @@ map's lines between ``<!-- verdict-map:begin -->`` and ``<!-- verdict-map:end --
 the stored objects, that a fresh reproduction measures the stored headline, integration step
 and the stored map's nominal cells, and that its verdicts agree with the stored robustness;
 ``tests/test_verdict_map.py`` re-runs one cell of the stored map off the nominal bench.
-Standard library only, but for the lines of the map and of the integration step
-(emasim.analysis.verdict_map, emasim.analysis.integration_step).
+The blocks follow emasim.page_blocks' rule; the lines of the map and of the integration step
+are emasim.analysis.verdict_map's and emasim.analysis.integration_step's.
 """
 
 import json
 import sys
 from pathlib import Path
+
+from emasim.page_blocks import write_block
 
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "headline.json"
@@ -36,12 +38,6 @@ VERDICT_MAP = ROOT / "docs" / "verdict_map.json"
 INTEGRATION_STEP = ROOT / "docs" / "integration_step.json"
 README = ROOT / "README.md"
 PAPER = ROOT / "docs" / "paper.md"
-BLOCKS = {
-    "headline": "<!-- headline:{}-->",
-    "robustness": "<!-- robustness:{}-->",
-    "verdict-map": "<!-- verdict-map:{}-->",
-    "integration-step": "<!-- integration-step:{}-->",
-}
 PAGES = {
     "headline": (README, PAPER),
     "robustness": (PAPER,),
@@ -276,12 +272,6 @@ def render_verdict_map(vmap: dict) -> str:
     return "\n".join(f"- {line}" for line in flip_lines(vmap))
 
 
-def block_of(text: str, name: str) -> str:
-    """A page's text between the block's markers, without the newlines that frame it."""
-    begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
-    return text[text.index(begin) + len(begin) : text.index(end)].strip("\n")
-
-
 def render_integration_step(steps: dict) -> str:
     """The integration step's table and lines (emasim.analysis.integration_step)."""
     from emasim.analysis.integration_step import step_lines, table_markdown
@@ -297,15 +287,9 @@ def write_pages(headline: dict, verdicts: dict, vmap: dict, steps: dict) -> None
         "robustness": render_robustness(verdicts, headline),
         "verdict-map": render_verdict_map(vmap),
     }
-    for page in dict.fromkeys(p for pages in PAGES.values() for p in pages):
-        text = page.read_text()
-        for name, body in blocks.items():
-            if page not in PAGES[name]:
-                continue
-            begin, end = BLOCKS[name].format("begin "), BLOCKS[name].format("end ")
-            start, stop = text.index(begin) + len(begin), text.index(end)
-            text = text[:start] + "\n" + body + "\n" + text[stop:]
-        page.write_text(text)
+    for name, body in blocks.items():
+        for page in PAGES[name]:
+            write_block(page, name, body)
 
 
 def main() -> None:

@@ -45,6 +45,7 @@ from emasim.experiments import acceptance as ac
 from emasim.experiments.batch import Job
 from emasim.experiments.store import read_table
 from emasim.output import foreign_files
+from emasim.page_blocks import block_of
 from emasim.scenarios.loader import load_scenario
 
 KPP, KPS = 20.0, 0.5  # position loop 1/s, speed loop A s/rad: proportional only
@@ -225,7 +226,7 @@ def test_the_documented_datasheet_is_the_stored_sheet_rendered():
     ``python docs/readme_datasheet.py DIR``."""
     module = module_at("docs/readme_datasheet.py")
     sheet = json.loads((ROOT / "docs" / "datasheet.json").read_text())
-    assert module.block_of(module.PAGE.read_text()) == module.render(sheet)
+    assert block_of(module.PAGE.read_text(), module.BLOCK) == module.render(sheet)
     assert sheet["scenario"] == "bench-step"
     assert list(sheet["sets"]) == [v.label for v in load_scenario("bench-step").compare]
 

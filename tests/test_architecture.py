@@ -4,6 +4,7 @@ example's file list is every source file that names the gear mesh."""
 import re
 from pathlib import Path
 
+from emasim.page_blocks import block_of
 from emasim.plant import actuator as A
 
 ROOT = Path(__file__).parents[1]
@@ -13,19 +14,15 @@ SOURCE = ROOT / "src" / "emasim"
 NAMES = re.compile(r"gear_mesh|GearMesh|GEAR_MESH|screw_angle_rad|screw_inertia_kgm2")
 
 
-def block(name: str) -> str:
-    return PAGE.split(f"<!-- {name}:begin -->")[1].split(f"<!-- {name}:end -->")[0]
-
-
 def test_the_element_table_is_the_plants_elements_with_their_modules():
-    rows = re.findall(r"^\| `(\w+)` \| `([\w/.]+)` \|", block("elements"), re.M)
+    rows = re.findall(r"^\| `(\w+)` \| `([\w/.]+)` \|", block_of(PAGE, "elements"), re.M)
     assert [name for name, _ in rows] == [e.name for e in A.ELEMENTS]
     for name, path in rows:  # the module declares the element of that name
         assert re.search(rf'^    "{name}",$', (SOURCE / path).read_text(), re.M), (name, path)
 
 
 def test_the_examples_files_are_every_source_file_that_names_the_element():
-    listed = set(re.findall(r"`(src/[\w/.]+)`", block("example-files")))
+    listed = set(re.findall(r"`(src/[\w/.]+)`", block_of(PAGE, "example-files")))
     assert listed and all((ROOT / path).is_file() for path in listed)
     naming = {
         str(path.relative_to(ROOT))

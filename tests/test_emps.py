@@ -11,6 +11,8 @@ import re
 import pytest
 from helpers import module_at
 
+from emasim.page_blocks import block_of
+
 calibration = module_at("benchmarks/emps_calibration.py")
 pytestmark = pytest.mark.skipif(
     not (calibration.EMPS / calibration.TRAIN).is_file(),
@@ -48,7 +50,7 @@ def test_the_cross_validation_is_measured_for_every_model(measured):
 def test_the_docs_page_shows_what_was_measured(measured):
     """Run ``python benchmarks/emps_calibration.py --write`` after a change that moves them."""
     page = calibration.DOCS.read_text()
-    shown = calibration.without_seconds(calibration.block_of(page))
+    shown = calibration.without_seconds(block_of(page, calibration.BLOCK))
     assert shown == calibration.without_seconds(calibration.render(measured))
 
 

@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from emasim.cli import app
 from emasim.identification.bench_features import Constants, features
+from emasim.page_blocks import block_of
 
 bench = module_at("benchmarks/bench_fault_identification.py")
 KNOWN = Constants(
@@ -125,4 +126,4 @@ def test_the_docs_score_is_what_the_benchmark_measured():
         assert row["recovered"] == all(row[key]["recovered"] for key in truth)
     assert {k: results[k] for k in ("recovered", "strictly", "by_key")} == bench.score(rows)
     text = bench.DOCS.read_text()
-    assert bench.block_of(text) == bench.render(results)
+    assert block_of(text, bench.BLOCK) == bench.render(results)

@@ -13,6 +13,7 @@ from typer.main import get_command
 from typer.testing import CliRunner
 
 from emasim.cli import app
+from emasim.page_blocks import block_of
 from emasim.scenarios.loader import read_scenario_file, validate_scenario
 
 ROOT = Path(__file__).parents[1]
@@ -166,7 +167,7 @@ def test_the_readme_states_the_two_commands_measured_times():
     ``python3 benchmarks/readme_commands.py --write`` (minutes: it runs both in a fresh
     clone); this test times nothing."""
     stored = json.loads(commands.STORE.read_text())
-    assert commands.block_of(README) == commands.render(stored)
+    assert block_of(README, commands.BLOCK) == commands.render(stored)
     printed = commands.commands(README)
     assert [stored["commands"][name]["command"] for name in commands.NAMES] == printed
 

@@ -15,6 +15,7 @@ from emasim.analysis.paper_report import notes as notes_text
 from emasim.analysis.report import CHECK_TOLERANCE
 from emasim.cli import app
 from emasim.output import foreign_files
+from emasim.page_blocks import block_of
 from emasim.scenarios.loader import load_scenario
 
 SHARED_RESULTS = Path(__file__).parents[2] / "shared" / "paper" / "results.toml"
@@ -75,7 +76,7 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     assert module.PAGES["headline"] == (module.README, module.PAPER)
     for page in module.PAGES["headline"]:
         expected = module.render(stored, robust, vmap, steps)
-        assert module.block_of(page.read_text(), "headline") == expected
+        assert block_of(page.read_text(), "headline") == expected
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
         for side in ("ours_pid", "ours_hybrid", "paper_pid", "paper_hybrid"):
@@ -93,7 +94,7 @@ def test_the_integration_step_table_is_the_one_this_reproduction_measures(report
     module = module_at("docs/readme_headline.py")
     stored = json.loads(module.INTEGRATION_STEP.read_text())
     page = module.PAPER.read_text()
-    assert module.block_of(page, "integration-step") == module.render_integration_step(stored)
+    assert block_of(page, "integration-step") == module.render_integration_step(stored)
     measured = json.loads((report / "tables.json").read_text())["integration_step"]
     assert measured.keys() == stored.keys() == set(HEADLINE)
     for key, entry in stored.items():
@@ -188,7 +189,7 @@ def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
     robust = json.loads(module.ROBUSTNESS.read_text())
     stored = json.loads(module.STORE.read_text())
     page = module.PAPER.read_text()
-    assert module.block_of(page, "robustness") == module.render_robustness(robust, stored)
+    assert block_of(page, "robustness") == module.render_robustness(robust, stored)
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in measured.items():
         spread = (robust[key]["improvement_p05_pct"], robust[key]["improvement_p95_pct"])

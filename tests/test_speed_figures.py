@@ -12,6 +12,8 @@ from pathlib import Path
 
 from helpers import module_at
 
+from emasim.page_blocks import block_of
+
 ROOT = Path(__file__).parents[1]
 README = (ROOT / "README.md").read_text()
 SPEED = (ROOT / "docs" / "speed.md").read_text()
@@ -31,7 +33,7 @@ TIMING = re.compile(
 def test_the_page_block_is_the_stored_results_rendered():
     """Run ``python benchmarks/speed_figures.py`` (or the full benchmark) after editing
     results.json or the renderer."""
-    assert figures.block_of(SPEED) == figures.render(RESULTS)
+    assert block_of(SPEED, figures.BLOCK) == figures.render(RESULTS)
     assert figures.PAGE.read_text() == SPEED
 
 
@@ -51,12 +53,12 @@ def test_no_timing_figure_is_typed_outside_the_blocks():
     no "N µs" or "N× faster" outside its block of the two commands' times
     (benchmarks/readme_commands.py)."""
     for name, text in (
-        ("speed", SPEED.replace(figures.block_of(SPEED), "")),
+        ("speed", SPEED.replace(block_of(SPEED, figures.BLOCK), "")),
         ("development", DEVELOPMENT),
     ):
         found = [line for line in text.splitlines() if TIMING.search(line)]
         assert found == [], name
-    without_block = README.replace(commands.block_of(README), "")
+    without_block = README.replace(block_of(README, commands.BLOCK), "")
     loose = re.compile(r"about \d[\d.]*\s*(s|ms|µs)\b|\d\s*µs|\d\s*(×|x) faster")
     assert [line for line in without_block.splitlines() if loose.search(line)] == []
 

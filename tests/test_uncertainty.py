@@ -2,7 +2,6 @@
 on the bench experiments, docs/paper.md's table is the code's, the verdicts' sensitivity to each
 parameter's thirds, and the draws' --seed."""
 
-import re
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +13,12 @@ from emasim.experiments.study import plan_study, resolved_value
 from emasim.experiments.uncertainty import (
     ROWS,
     SEED,
-    TABLE_BEGIN,
-    TABLE_END,
+    TABLE_BLOCK,
     UNCERTAINTY,
     markdown,
 )
 from emasim.experiments.variation import parse_variation
+from emasim.page_blocks import block_of
 from emasim.scenarios.loader import load_scenario
 
 PAPER = Path(__file__).resolve().parents[1] / "docs" / "paper.md"
@@ -27,9 +26,7 @@ PAPER = Path(__file__).resolve().parents[1] / "docs" / "paper.md"
 
 def test_the_docs_hold_the_codes_table():
     text = PAPER.read_text(encoding="utf-8")
-    found = re.search(re.escape(TABLE_BEGIN) + r"\n(.*?)\n" + re.escape(TABLE_END), text, re.S)
-    assert found, "docs/paper.md lacks the uncertainty table's markers"
-    assert found.group(1) == markdown(), "docs/paper.md's uncertainty table differs from ROWS"
+    assert block_of(text, TABLE_BLOCK) == markdown(), "docs/paper.md's table differs from ROWS"
 
 
 def test_every_row_has_a_name_and_a_reason_and_the_issues_parameters_are_sampled():

@@ -26,6 +26,7 @@ from emasim.experiments.verdict_map import (
     verdict_map,
 )
 from emasim.jsonio import finite_or_none
+from emasim.page_blocks import block_of
 from emasim.plant.presets import ttl_rudder_encoder
 from emasim.scenarios.loader import load_scenario
 
@@ -126,7 +127,7 @@ def test_the_docs_lines_are_the_stored_maps():
     module = module_at(HEADLINE_MODULE)
     page = module.PAPER.read_text()
     vmap = json.loads(module.VERDICT_MAP.read_text())
-    assert module.block_of(page, "verdict-map") == module.render_verdict_map(vmap)
+    assert block_of(page, "verdict-map") == module.render_verdict_map(vmap)
 
 
 def test_the_stored_map_covers_every_headline_figure_against_both_baselines(stored):

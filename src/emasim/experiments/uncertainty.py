@@ -1,7 +1,7 @@
 """The bench's plant uncertainty that the Monte Carlo of the headline verdicts samples
 (:mod:`.robustness`): one table (ROWS), each row a ``--vary`` spec (:mod:`.variation`) with the
 reason for its range. ``UNCERTAINTY`` (the specs) and the table of docs/paper.md
-(:func:`markdown`, between TABLE_BEGIN and TABLE_END) are made from it.
+(:func:`markdown`, the block TABLE_BLOCK, emasim.page_blocks) are made from it.
 
 Every distribution is uniform (log-uniform for a factor of two either way, where the figure
 is ours and only its order of magnitude is known); a ``*`` spec scales the bench's own value.
@@ -11,8 +11,7 @@ from dataclasses import dataclass
 
 from ..plant.presets import LOADER_RATED_TORQUE_NM
 
-TABLE_BEGIN = "<!-- uncertainty:begin -->"
-TABLE_END = "<!-- uncertainty:end -->"
+TABLE_BLOCK = "uncertainty"  # docs/paper.md's block of the table
 SEED = "seed"
 TWO_EITHER_WAY = "*loguniform(0.5, 2)"
 BOLTED = "*uniform(0.7, 1.3)"
@@ -155,7 +154,7 @@ COLUMNS = {row.column: row.name for row in ROWS}  # study table column -> parame
 
 
 def markdown(specs: tuple[str, ...] = UNCERTAINTY) -> str:
-    """The table of ``specs`` (docs/paper.md's: ROWS', between TABLE_BEGIN and TABLE_END), each
+    """The table of ``specs`` (docs/paper.md's: ROWS', the block TABLE_BLOCK), each
     with its row's name and reason ('-' for a spec of no row)."""
     from ..analysis.tables import markdown_table
 
