@@ -78,7 +78,10 @@ def test_the_lines_and_the_report_section_cover_every_figure_and_baseline():
     assert lines[2].endswith("PID 50 %, industrial PID 0 %, hybrid 29 %.")
     section = "\n\n".join(markdown(table))
     assert "| figure | controller set | 5e-06 s | 1e-05 s (shipped) | 2e-05 s |" in section
-    assert "| tracking_error_deg (deg) | industrial PID | 0.0800 | 0.0800 | 0.0800 |" in section
+    assert (
+        "| bench-sine: tracking_error_deg (deg) | industrial PID | 0.0800 | 0.0800 | 0.0800 |"
+        in section
+    )
 
 
 def test_every_bench_controller_set_runs_at_half_and_twice_its_step():

@@ -104,7 +104,11 @@ def table_markdown(table: dict) -> str:
     first = next(iter(table.values()))
     header = ["figure", "controller set", *(_step(first, s) for s in first["step_s"])]
     body = [
-        [f"{entry['metric']} ({entry['unit']})", label, *map(number_cell, values)]
+        [
+            f"{entry['experiment']}: {entry['metric']} ({entry['unit']})",
+            label,
+            *map(number_cell, values),
+        ]
         for entry in table.values()
         for label, values in entry["values"].items()
     ]
