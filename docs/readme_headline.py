@@ -273,10 +273,10 @@ def render_verdict_map(vmap: dict) -> str:
 
 
 def render_integration_step(steps: dict) -> str:
-    """The integration step's table and lines (emasim.analysis.integration_step)."""
-    from emasim.analysis.integration_step import step_lines, table_markdown
+    """The integration step's table and lines (emasim.analysis.integration_step.body)."""
+    from emasim.analysis.integration_step import body
 
-    return table_markdown(steps) + "\n\n" + "\n".join(f"- {line}" for line in step_lines(steps))
+    return body(steps)
 
 
 def write_pages(headline: dict, verdicts: dict, vmap: dict, steps: dict) -> None:

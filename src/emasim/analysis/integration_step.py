@@ -12,7 +12,7 @@ of the plants (run at the shipped step) says. :func:`step_lines` reads the table
 
 import math
 
-from .judged import HYBRID_LABEL
+from .judged import HYBRID_LABEL, figure_words
 from .tables import markdown_table, number_cell
 from .verdict_map import margin
 
@@ -64,7 +64,7 @@ def spread(entry: dict, label: str) -> float | None:
 def step_line(name: str, entry: dict, baseline: str) -> str:
     """One headline figure's verdict against one baseline at every step, and whether it
     holds (module docstring)."""
-    what = f"{name.removesuffix('_reduction').replace('_', ' ')} against {baseline}"
+    what = f"{figure_words(name)} against {baseline}"
     found = margins(entry, baseline)
     steps = [_step(entry, s) for s in entry["step_s"]]
     shown = ", ".join(f"{_pct(m)} at {s}" for m, s in zip(found, steps, strict=True))
@@ -93,7 +93,7 @@ def step_lines(table: dict) -> list[str]:
             for label in entry["values"]
         ]
         lines.append(
-            f"{name.removesuffix('_reduction').replace('_', ' ')} ({entry['metric']}) moves "
+            f"{figure_words(name)} ({entry['metric']}) moves "
             f"across the steps by (largest - smallest) / shipped: {', '.join(moved)}."
         )
     return lines
@@ -115,14 +115,20 @@ def table_markdown(table: dict) -> str:
     return markdown_table(header, body)
 
 
+def body(table: dict) -> str:
+    """:func:`table_markdown`, then :func:`step_lines` as a list (the report's section and
+    docs/paper.md's block)."""
+    lines = "\n".join(f"- {line}" for line in step_lines(table))
+    return f"{table_markdown(table)}\n\n{lines}"
+
+
 def markdown(table: dict) -> list[str]:
-    """The report's section: what was run, the figures at every step and :func:`step_lines`."""
+    """The report's section: what was run, then :func:`body`."""
     return [
         "## The integration step",
         "Each bench experiment's controller sets run again at half and at twice the plant's "
         "integration step, everything else as shipped (emasim.experiments.integration_step). "
         "A verdict that changes sign across the three steps is within what the integrator "
         "alone moves: the simulation does not settle it.",
-        table_markdown(table),
-        "\n".join(f"- {line}" for line in step_lines(table)),
+        body(table),
     ]

@@ -66,3 +66,9 @@ def headline_metric(key: str) -> tuple[str, str]:
     """(our metric key, unit) of a headline figure (a key of HEADLINE)."""
     experiment, row, _ = HEADLINE[key]
     return ABLATED_TABLES[experiment][row]
+
+
+def figure_words(key: str) -> str:
+    """How the reports name a headline figure: its key in words ('sine displacement lag' for
+    'sine_displacement_lag_reduction')."""
+    return key.removesuffix("_reduction").replace("_", " ")

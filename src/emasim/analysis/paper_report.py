@@ -28,6 +28,7 @@ from .judged import (
     HEADLINE,
     HYBRID_LABEL,
     PID_LABEL,
+    figure_words,
     headline_metric,
 )
 from .pareto import equal_chatter_table
@@ -369,7 +370,7 @@ def _headline_markdown(items: dict) -> str:
     ]
     rows = [
         [
-            name.removesuffix("_reduction").replace("_", " "),
+            figure_words(name),
             h["unit"],
             number_cell(h["paper_pid"]),
             number_cell(h["paper_hybrid"]),
@@ -437,7 +438,7 @@ def robustness_lines(verdicts: dict, headline: dict | None = None) -> list[str]:
     for name, v in verdicts.items():
         if not v.get("runs"):
             continue
-        what = name.removesuffix("_reduction").replace("_", " ")
+        what = figure_words(name)
         better = "lower" if v["win_rate"] >= 0.5 else "higher"
         line = (
             f"{what} ({v['scenario']} {v['metric']}): the hybrid's is lower than PID's on "
@@ -487,7 +488,7 @@ def _robustness_markdown(verdicts: dict, uncertainty: str, headline: dict) -> li
     header = ["figure", "experiment", "runs", "hybrid wins", "95 % interval", "median gain"]
     rows = [
         [
-            name.removesuffix("_reduction").replace("_", " "),
+            figure_words(name),
             v["scenario"],
             str(v["runs"]),
             f"{100 * v['win_rate']:.0f} %",
@@ -518,7 +519,7 @@ def _wear_markdown(degradation: dict, figures: list) -> list[str]:
     levels = next(iter(degradation.values()))["levels"]
     header = ["figure", "controller set", *(f"level {k}" for k in levels)]
     rows = [
-        [name.removesuffix("_reduction").replace("_", " "), label, *entry[label]]
+        [figure_words(name), label, *entry[label]]
         for name, entry in degradation.items()
         for label in (PID_LABEL, HYBRID_LABEL)
     ]

@@ -409,6 +409,7 @@ def plot_verdict_map(vmap: dict):
     down, the nominal bench's cell framed."""
     from matplotlib.patches import Rectangle
 
+    from .judged import figure_words
     from .verdict_map import cell_at, margin_of
 
     axes_of, nominal = vmap["axes"], vmap["nominal"]
@@ -452,9 +453,7 @@ def plot_verdict_map(vmap: dict):
             )
             ax.set_xticks(range(len(across)), [f"{p:g}" for p in across], fontsize=7)
             ax.set_yticks(range(len(down)), [f"{e}, {c:g} mm" for e, c in down], fontsize=7)
-            ax.set_title(
-                f"{name.removesuffix('_reduction').replace('_', ' ')}: vs {baseline}", fontsize=8
-            )
+            ax.set_title(f"{figure_words(name)}: vs {baseline}", fontsize=8)
             if row == len(entries) - 1:
                 ax.set_xlabel("standing preload (N m)", fontsize=8)
     fig.colorbar(image, ax=panels, label="hybrid's margin (%), clipped at +-100", shrink=0.6)

@@ -11,6 +11,7 @@ lines that go the other way are counted. :func:`markdown` is the report's sectio
 
 import math
 
+from .judged import figure_words
 from .tables import markdown_table
 from .units import unit_of
 
@@ -89,7 +90,7 @@ def flip_line(name: str, metric: str, baseline: str, cells: list[dict], nominal:
     wins = sum(_wins(c) for c in cells)
     verdict = "wins" if _wins(home) else "loses"
     text = (
-        f"{name.removesuffix('_reduction').replace('_', ' ')} against {baseline}: on the "
+        f"{figure_words(name)} against {baseline}: on the "
         f"nominal bench the hybrid {verdict} ({_figure(home['baseline'])} against "
         f"{_figure(home['hybrid'])} {unit_of(metric)}, margin {_margin(margin_of(home))}); it "
         f"wins in {wins} of {len(cells)} cells"
@@ -172,7 +173,7 @@ def markdown(vmap: dict, figure: tuple[str, str] | None = None) -> list[str]:
                         shown = _margin(margin_of(cell))
                         row.append(f"**{shown}**" if place == nominal else shown)
                     body.append(row)
-            title = name.removesuffix("_reduction").replace("_", " ")
+            title = figure_words(name)
             parts += [f"### {title}, hybrid against {baseline}", markdown_table(header, body)]
     parts.append("\n".join(f"- {line}" for line in flip_lines(vmap)))
     return parts
