@@ -23,7 +23,7 @@ from emasim.output import (
     JOURNAL,
     MARKER,
     OutputError,
-    check_folder,
+    check_target,
     clean_leftovers,
     foreign_files,
     is_emasim_folder,
@@ -304,7 +304,7 @@ def test_force_checks_a_file_again_just_before_replacing_it(tmp_path, monkeypatc
 def test_a_folder_that_cannot_be_written_is_one_error(tmp_path):
     with pytest.raises(OutputError, match="cannot write"):
         write_folder("/proc/emasim-cannot-write/run", fill)
-    check_folder(tmp_path / "new" / "deeper", force=False)  # creatable: fine
+    check_target(tmp_path / "new" / "deeper", force=False)  # creatable: fine
 
 
 def test_json_is_valid_json():

@@ -429,7 +429,7 @@ def run(
 ) -> None:
     """Run a scenario (every controller set it compares, or the one chosen); write the run
     folder and print the metrics."""
-    from .output import check_folder
+    from .output import check_target
     from .scenarios.loader import load_scenario
 
     try:
@@ -449,7 +449,7 @@ def run(
             check_runnable(sc, trust_fmu)  # every rule, before the compile notice
             check_trace_format(trace_format, sc)
             if out is not None:
-                check_folder(out, force)  # refuse before spending the simulation time
+                check_target(out, force)  # refuse before spending the simulation time
             _notice_compile()
             progress = _LazyProgress(f"simulating {sc.name}")
             try:
@@ -543,7 +543,7 @@ def tune(
     the scenario with the tuned gains and a record of each set's search."""
     from .experiments.batch import check_scheduler, dask_client
     from .naming import RUNS_ROOT, fresh_file, slug
-    from .output import check_file, write_file
+    from .output import CLI_HINTS, check_target, write_file
     from .scenarios.loader import (
         apply_controller_choice,
         apply_setting,
@@ -576,7 +576,7 @@ def tune(
         if scheduler is not None:
             check_scheduler(scheduler)
         if save is not None:
-            check_file(save, force, is_tuned_scenario, "--save")
+            check_target(save, force, "--save", CLI_HINTS[:1], is_tuned_scenario)
     except EmasimError as err:
         _fail(err)
     _notice_compile()
@@ -807,7 +807,7 @@ def reproduce(
     from .analysis.paper_report import EXPERIMENTS
     from .experiments.reproduction import check_robustness
     from .experiments.reproduction import reproduce as run_all
-    from .output import check_folder
+    from .output import check_target
 
     names = [e.scenario for e in EXPERIMENTS]
     unknown = [n for n in only or [] if n not in names]
@@ -823,7 +823,7 @@ def reproduce(
         if robustness:
             check_robustness(only)
         if out is not None:
-            check_folder(out, force)
+            check_target(out, force)
         _notice_compile()
         folder = run_all(
             out,
@@ -871,7 +871,7 @@ def acceptance(
     """Run the actuator acceptance battery (frequency response, threshold, stiffness, rate and
     load) for each controller set; write datasheet.json, frequency_response.csv, report.html
     and the figures."""
-    from .output import check_folder
+    from .output import check_target
     from .scenarios.loader import load_scenario
 
     try:
@@ -881,7 +881,7 @@ def acceptance(
         battery = Battery(excitation=excitation)
         check_acceptance(sc, label)  # every rule, before anything is compiled or written
         if out is not None:
-            check_folder(out, force)  # refuse before spending the simulation time
+            check_target(out, force)  # refuse before spending the simulation time
         _notice_compile()
         start = time.perf_counter()
         bar, progress = _runs_bar(f"acceptance battery of {sc.name}")
@@ -990,7 +990,7 @@ def identify(
     identified.json, the calibrated scenario.toml, traces.parquet, fit.png and report.md."""
     from .identification.identify import default_folder, identify_series, shown
     from .identification.identify import identify as run_identify
-    from .output import check_folder
+    from .output import check_target
 
     options = {
         "fit": fit or [],
@@ -1003,7 +1003,7 @@ def identify(
     }
     try:
         if out is not None:
-            check_folder(out, force)  # refuse before spending the fit's time
+            check_target(out, force)  # refuse before spending the fit's time
         target = out or default_folder(scenario)
         if len(data) > 1 or at or wear:
             series = identify_series(

@@ -42,7 +42,7 @@ _LINE = "{0.st_dev}:{0.st_ino} {1}"  # a journal line: a file's inode, its name
 _LIBC = ctypes.CDLL(None, use_errno=True)
 _RENAMEAT2 = getattr(_LIBC, "renameat2", None)  # glibc >= 2.28
 _LINKAT = getattr(_LIBC, "linkat", None)
-Content = str | bytes | Iterable[str | bytes]  # what a new file is written from
+Content = str | bytes | Iterable[str | bytes] | Path  # what a new file is written from
 
 
 def _beside(path: Path, kind: str) -> Path:
@@ -148,28 +148,24 @@ def _journal(build: Path, line: str) -> None:
 
 def write_new(path: Path, content: Content) -> None:
     """Write ``content`` (text, as UTF-8, or bytes, or an iterable of them written one block at
-    a time) to a new file through :func:`new_file`."""
+    a time, or a file's path to copy) to a new file through :func:`new_file`."""
+    content = content.read_bytes() if isinstance(content, Path) else content
     with new_file(path) as handle:
         for block in [content] if isinstance(content, str | bytes) else content:
             handle.write(block.encode() if isinstance(block, str) else block)
 
 
-def check_parents(path: Path, what: str) -> None:
-    """Refuse a target under a file, or in a folder that cannot be written."""
-    parent = next(p for p in Path(path).absolute().parents if os.path.lexists(p))
+def check_target(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None,
+                 at: Path | None = None) -> None:  # fmt: skip
+    """Raise OutputError unless a result folder (or, given ``is_ours``, a file) may be written
+    at ``path``, its old result now ``at`` (moved aside) if given: not under a file, nor in a
+    folder that cannot be written; ``hints`` say how to replace it (and get a fresh one)."""
+    path, folder, at = Path(path), is_ours is None, Path(at or path)
+    parent = next(p for p in path.absolute().parents if os.path.lexists(p))
     if not parent.is_dir():
         raise OutputError(f"{what} {path}: {parent} is a file, not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"{what} {path}: cannot write in {parent}")
-
-
-def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None,
-                 at: Path | None = None) -> None:  # fmt: skip
-    """Raise OutputError unless a result folder (or, given ``is_ours``, a file) may be written
-    at ``path``, its old result now ``at`` (moved aside) if given; ``hints`` say how to replace
-    it, and how to get a fresh one."""
-    path, folder, at = Path(path), is_ours is None, Path(at or path)
-    check_parents(path, what)
     if not os.path.lexists(at) or folder and _real_folder(at) and not any(at.iterdir()):
         return
     never = "emasim never replaces it (choose another path)"
@@ -187,12 +183,6 @@ def check_folder(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, 
             f"{what} {path}: holds files emasim did not write, or changed since ({foreign[0]}"
             f"{more}); move them out first, or choose another path"
         )
-
-
-def check_file(path: Path, force: bool, is_ours: Callable[[Path], bool], what: str,
-               replace_hint: str = CLI_HINTS[0]) -> None:  # fmt: skip
-    """Raise OutputError unless a file may be written at ``path``."""
-    check_folder(path, force, what, (replace_hint,), is_ours)
 
 
 def clean_leftovers(folder: Path) -> list[Path]:
@@ -267,7 +257,7 @@ def write_folder(path: Path, write: Callable[[Path], None], *, force: bool = Fal
     """Build a result folder with ``write(tmp)``, publish it at ``path`` and return where;
     ``kind`` goes into the marker. ``unique``: a name taken meanwhile moves on to ``-2``..."""
     path = Path(path)
-    check_folder(path, force, what, hints)
+    check_target(path, force, what, hints)
     with _build(path, kind, what, write) as tmp:
         for candidate in numbered(path.parent, path.name) if unique else [path]:
             if _publish(tmp, candidate, force, what):
@@ -284,7 +274,7 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
         return _rename(tmp, path)
     _rename(path, old := _beside(path, "old"))
     try:
-        check_folder(path, force, what, at=old)
+        check_target(path, force, what, at=old)
     except BaseException:
         with contextlib.suppress(OSError):
             _rename(old, path)  # put back
@@ -294,22 +284,17 @@ def _publish(tmp: Path, path: Path, force: bool, what: str) -> bool:
     return published
 
 
-def write_file(path: Path, content: Content | Path, *, force: bool = False,
+def write_file(path: Path, content: Content, *, force: bool = False,
                is_ours: Callable[[Path], bool], what: str,
                replace_hint: str = CLI_HINTS[0], listed: bool = False) -> Path:  # fmt: skip
-    """Write ``content`` (as :func:`write_new` takes it, or a file's path to copy) to the file
-    ``path`` as the module docstring says; ``listed``: into an emasim result, whose manifest then
-    lists it."""
-    path = Path(path)
-    check_file(path, force, is_ours, what, replace_hint)
-
-    def write(tmp: Path) -> None:
-        write_new(tmp / path.name, content.read_bytes() if isinstance(content, Path) else content)
-
-    with _build(path, "file", what, write) as tmp:
+    """Write ``content`` (as :func:`write_new` takes it) to the file ``path`` as the module
+    docstring says; ``listed``: into an emasim result, whose manifest then lists it."""
+    path, hints = Path(path), (replace_hint,)
+    check_target(path, force, what, hints, is_ours)
+    with _build(path, "file", what, lambda tmp: write_new(tmp / path.name, content)) as tmp:
         try:
             if force and os.path.lexists(path):
-                check_file(path, force, is_ours, what, replace_hint)  # again, under the lock
+                check_target(path, force, what, hints, is_ours)  # again, under the lock
                 os.replace(tmp / path.name, path)
             else:
                 os.link(tmp / path.name, path)  # replaces nothing

@@ -24,7 +24,7 @@ from ..analysis.paper_report import (
 from ..config import hard_limits
 from ..errors import InputError
 from ..naming import RUNS_ROOT, fresh_folder, slug
-from ..output import check_folder, write_folder, write_new
+from ..output import check_target, write_folder, write_new
 from ..scenarios.loader import load_scenario
 from . import verdict_map, wear
 from .ablation import STAGES, ablation_jobs, ablation_table
@@ -270,7 +270,7 @@ def reproduce(
     if robustness_runs is not None:
         check_robustness(only)
     if out is not None:
-        check_folder(Path(out), force)
+        check_target(Path(out), force)
 
     chosen = {
         e.scenario: load_scenario(e.scenario) for e in EXPERIMENTS if not only or e.scenario in only

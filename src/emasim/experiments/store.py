@@ -49,7 +49,7 @@ from pathlib import Path
 from ..errors import DamagedResult, EmasimError, OutputError, SimulationDiverged
 from ..jsonio import json_text
 from ..manifest import list_file, manifest_stamps, verify_files
-from ..output import check_folder, is_emasim_folder, write_file, write_folder, write_new
+from ..output import check_target, is_emasim_folder, write_file, write_folder, write_new
 from .batch import Job
 
 METRICS_FILE = "metrics.parquet"
@@ -141,7 +141,7 @@ class Store:
             if there == record:
                 return
             raise OutputError(f"{self.name}: {self.refusal}")
-        check_folder(self.folder, force=False)
+        check_target(self.folder, force=False)
 
         def write(tmp: Path) -> None:
             write_new(tmp / self.record_file, json_text(record))

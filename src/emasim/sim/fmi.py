@@ -211,12 +211,12 @@ def _build(path, script: str, resource_name: str, payload: dict, force: bool) ->
     place atomically (emasim.output.write_file: never over a file emasim did not write)."""
     FmuBuilder = fmi_extra("pythonfmu", "exporting an FMU").FmuBuilder  # noqa: N806
 
-    from ..output import check_file, write_file
+    from ..output import CLI_HINTS, check_target, write_file
 
     target = Path(path)
     if target.suffix != ".fmu":
         raise InputError(f"--out {target}: an FMU file name must end in .fmu")
-    check_file(target, force, is_emasim_fmu, "--out")
+    check_target(target, force, "--out", CLI_HINTS[:1], is_emasim_fmu)
     saved_path = list(sys.path)  # the builder puts the script's folder on sys.path
     with (
         resources.as_file(resources.files("emasim.sim.fmu") / script) as script_file,
