@@ -12,6 +12,15 @@ eigenvalue reaches -5e5 1/s at speed.
 
 Controllers arrive as first-class function values (:data:`emasim.control.slot.CONTROLLER_TYPE`):
 the loop is compiled once, eagerly and cached on disk, whatever the controllers.
+
+What the loop does at every tick (:func:`control_tick`, :func:`record`, :func:`check_state`)
+is inlined into it (numba's ``inline="always"``). Called, each took the fields of the records
+it reads by value at every tick: ``benchmarks/bench_paired.py --before 443a579`` measured
+speed-step 0.0146 against 0.0119 s per simulated second, speed-sine 0.0159 against 0.0135,
+position-step 0.0203 against 0.0176, the bench scenarios 2 to 3 % (medians of 3 interleaved
+pairs; the traces bit for bit the same), for 3 s more of the first compile (35 against 32 s).
+The right-hand side's helpers stay calls: the linkage's contacts inlined made the first
+compile 8 minutes (482 s) for 5 % of the bench's time.
 """
 
 import math
@@ -137,7 +146,7 @@ def fed_back_position(meas, p, feedback, rudder_to_rod):
     return meas[M_POSITION]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def control_tick(t, tick, model, data, laws):
     """One control sample: read the sensors, run the slots that close (position, speed, then
     current), and return (ud, uq, speed_ref, iq_ref, position_ref) applied from t + Td on.
@@ -213,7 +222,7 @@ def plant_step(t, x, u_d, u_q, p, motor_load, rod_load, rudder_load, h, work):
              k1, k2, k3, k4, xs, work.hinges)  # fmt: skip
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def check_state(x, p, limits, status, tick):
     """Flag the first state this loop integrates (actuator.active_states) that is NaN/inf or
     beyond its limit; True when all are fine."""
@@ -227,7 +236,7 @@ def check_state(x, p, limits, status, tick):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, inline="always", error_model="numpy")
 def record(model, data, r, t, u_d, u_q, speed_ref, iq_ref, position_ref):
     """Store row r of the traces (at r modulo the trace's rows: emasim.sim.spool empties a
     short trace as it fills): the kept columns (Model.trace_columns) of the TRACE row,
