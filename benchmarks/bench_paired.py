@@ -1,6 +1,7 @@
 """Paired speed of this tree against an earlier revision, in interleaved processes.
 
     python benchmarks/bench_paired.py [--before REV] [--after REV] [--pairs 5] [--quick]
+                                      [--scenarios-from REV]
                                       [--commands [--only KEY]...] [--reproduce]
 
 The shared machine is noisy, so two trees are never timed minutes apart. The package of
@@ -12,7 +13,10 @@ is timed nor start a new numba cache, whose compile would land in a timed proces
 in even pairs and second in odd ones (so neither side always runs second). Each process
 times every shipped scenario's first controller set once, after a warm-up. Two calls are
 timed per scenario: ``simulate(setup)`` as a script calls it, and the same run with a
-progress callback, as the command line runs it.
+progress callback, as the command line runs it. A scenario re-tuned between the trees runs
+other gains in each; ``--scenarios-from REV`` has both trees time that revision's scenario
+files instead (each read by its path), so that only the engine differs; a file either tree
+refuses is left out.
 
 The script reports wall seconds per simulated second, the median of each tree, and the
 median of the paired ratios (after / before; below 1 is faster). The two trees cannot share
@@ -50,10 +54,10 @@ COMMANDS = {**STARTUP, "run_speed_step": (["run", "speed-step", "--out", "{out}/
 REPRODUCE = {"reproduce": (["reproduce", "--out", "{out}/report"], 0)}
 
 
-def extract(rev: str, folder: Path) -> Path:
-    """The source tree of ``rev`` (its ``src`` folder) under ``folder``."""
+def extract(rev: str, folder: Path, path: str = "src/emasim") -> Path:
+    """``path`` of ``rev`` (by default its package) under ``folder``; its ``src`` folder."""
     archive = subprocess.run(
-        ["git", "-C", str(ROOT), "archive", "--format=tar", rev, "src/emasim"],
+        ["git", "-C", str(ROOT), "archive", "--format=tar", rev, path],
         check=True,
         capture_output=True,
     ).stdout
@@ -72,14 +76,27 @@ def snapshot(folder: Path) -> Path:
     return folder / "src"
 
 
-def measure(duration_s: float | None) -> dict:
-    """In this process: scenario -> mode -> wall seconds per simulated second."""
+def scenario_files(rev: str, folder: Path) -> list[str]:
+    """The shipped scenario files of ``rev``, extracted under ``folder``: their paths."""
+    scenarios = extract(rev, folder, "src/emasim/scenarios") / "emasim" / "scenarios"
+    return sorted(str(p) for p in scenarios.glob("*.toml"))
+
+
+def measure(duration_s: float | None, files: list[str]) -> dict:
+    """In this process: scenario -> mode -> wall seconds per simulated second, for the shipped
+    scenarios or the scenario ``files``."""
+    from emasim.errors import EmasimError
     from emasim.scenarios.loader import builtin_scenarios, load_scenario
     from emasim.sim.engine import simulate
 
     out = {}
-    for name in sorted(builtin_scenarios()):
-        scenario = load_scenario(name)
+    for name in files or sorted(builtin_scenarios()):
+        try:
+            scenario = load_scenario(name)
+        except EmasimError as err:  # a file of another revision that this tree refuses
+            print(f"skipped: {err}", file=sys.stderr)
+            continue
+        name = Path(name).stem
         if scenario.compare:
             scenario = scenario.variants()[0][1]
         setup = scenario.setup()
@@ -95,9 +112,9 @@ def measure(duration_s: float | None) -> dict:
     return out
 
 
-def run_tree(src: Path, duration_s: float | None) -> dict:
+def run_tree(src: Path, duration_s: float | None, files: list[str]) -> dict:
     env = dict(os.environ, PYTHONPATH=str(src))
-    cmd = [sys.executable, "-W", "ignore", __file__, "--measure"]
+    cmd = [sys.executable, "-W", "ignore", __file__, "--measure", *files]
     if duration_s is not None:
         cmd += ["--duration", str(duration_s)]
     done = subprocess.run(cmd, env=env, check=True, capture_output=True, text=True)
@@ -149,11 +166,15 @@ def main() -> None:
         help="with --commands: time only this command (repeatable)",
     )
     parser.add_argument("--reproduce", action="store_true", help="time `emasim reproduce`")
+    parser.add_argument(
+        "--scenarios-from", default=None, help="both trees time this revision's scenario files"
+    )
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("files", nargs="*", help=argparse.SUPPRESS)
     parser.add_argument("--duration", type=float, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.measure:
-        print(json.dumps(measure(args.duration)))
+        print(json.dumps(measure(args.duration, args.files)))
         return
     pairs, duration = (1, QUICK_S) if args.quick else (args.pairs, None)
     if args.only and not args.commands:
@@ -164,6 +185,7 @@ def main() -> None:
             "before": extract(args.before, before),
             "after": extract(args.after, after) if args.after else snapshot(after),
         }
+        files = scenario_files(args.scenarios_from, Path(folder)) if args.scenarios_from else []
         commands = {key: COMMANDS[key] for key in args.only or COMMANDS}
         commands = REPRODUCE if args.reproduce else commands if args.commands else None
         if commands:
@@ -172,11 +194,11 @@ def main() -> None:
             times = interleaved(trees, pairs, lambda src: command_seconds(src, commands))
         else:
             for src in trees.values():
-                run_tree(src, QUICK_S)  # fill each tree's numba cache before timing
-            times = interleaved(trees, pairs, lambda src: run_tree(src, duration))
+                run_tree(src, QUICK_S, files)  # fill each tree's numba cache before timing
+            times = interleaved(trees, pairs, lambda src: run_tree(src, duration, files))
     print(
         f"after: {args.after or 'this tree'}; before: {args.before}; {pairs} interleaved pairs "
-        "of processes"
+        "of processes" + (f"; both on the scenario files of {args.scenarios_from}" if files else "")
     )
     if commands:
         print(
@@ -199,6 +221,7 @@ def main() -> None:
                 [t[name][mode] for t in times["after"]],
             )
             for name in times["before"][0]
+            if name in times["after"][0]
             for mode in MODES
         ]
     )
