@@ -17,7 +17,7 @@ What the loop does at every tick (:func:`control_tick`, :func:`record`, :func:`c
 is inlined into it (numba's ``inline="always"``). Called, each took the fields of the records
 it reads by value at every tick: ``benchmarks/bench_paired.py --before 443a579`` measured
 speed-step 0.0146 against 0.0119 s per simulated second, speed-sine 0.0159 against 0.0135,
-position-step 0.0203 against 0.0176, the bench scenarios 2 to 3 % (medians of 3 interleaved
+position-step 0.0203 against 0.0176, the bench scenarios 0 to 3 % (medians of 3 interleaved
 pairs; the traces bit for bit the same), for 3 s more of the first compile (35 against 32 s).
 The right-hand side's helpers stay calls: the linkage's contacts inlined made the first
 compile 8 minutes (482 s) for 5 % of the bench's time.
