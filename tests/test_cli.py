@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from emasim.cli import app
-from emasim.experiments.runs import run_scenario
+from emasim.experiments.runs import meta_of, run_scenario
 from emasim.scenarios.loader import validate_scenario
 from emasim.sim.result import Comparison, Result
 
@@ -54,9 +54,9 @@ def test_run_writes_the_whole_folder(run_folder):
         assert column in frame.columns
     meta = json.loads((out / "meta.json").read_text())
     assert meta["emasim_version"] and meta["seed"] == 0
-    # provenance: each is recorded; no value is compared (speed is measured in benchmarks/)
-    recorded = {"simulation_wall_s", "real_time_factor", "created_utc", "emasim_source_sha256"}
-    assert recorded <= set(meta)
+    # provenance: every key of meta_of is recorded (its values are the run's own)
+    scenario = validate_scenario(tomllib.loads((out / "scenario.toml").read_text()))
+    assert set(meta_of(scenario, 1.0)) <= set(meta)
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["settling_time_s"] > 0 and "settling time" in output
     assert not list(out.parent.glob(".*tmp*"))  # no temporary folder left behind
