@@ -29,6 +29,7 @@ import os
 import re
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import BinaryIO
 
 from .errors import OutputError
 from .manifest import MARKER, list_file, manifest_stamps, stamp, write_marker
@@ -42,7 +43,8 @@ _LINE = "{0.st_dev}:{0.st_ino} {1}"  # a journal line: a file's inode, its name
 _LIBC = ctypes.CDLL(None, use_errno=True)
 _RENAMEAT2 = getattr(_LIBC, "renameat2", None)  # glibc >= 2.28
 _LINKAT = getattr(_LIBC, "linkat", None)
-Content = str | bytes | Iterable[str | bytes] | Path  # what a new file is written from
+# what a new file is written from: see write_new
+Content = str | bytes | Iterable[str | bytes] | Path | Callable[[BinaryIO], None]
 
 
 def _beside(path: Path, kind: str) -> Path:
@@ -148,9 +150,13 @@ def _journal(build: Path, line: str) -> None:
 
 def write_new(path: Path, content: Content) -> None:
     """Write ``content`` (text, as UTF-8, or bytes, or an iterable of them written one block at
-    a time, or a file's path to copy) to a new file through :func:`new_file`."""
+    a time, or a file's path to copy, or a function that writes to the binary handle it is
+    given) to a new file through :func:`new_file`."""
     content = content.read_bytes() if isinstance(content, Path) else content
     with new_file(path) as handle:
+        if callable(content):
+            content(handle)
+            return
         for block in [content] if isinstance(content, str | bytes) else content:
             handle.write(block.encode() if isinstance(block, str) else block)
 

@@ -11,7 +11,6 @@ did not write (replacing an earlier emasim result needs ``force=True``). Without
 ``save()`` picks a fresh one, ``runs/<scenario>/<label>-<time>``.
 """
 
-import io
 import json
 import os
 import tomllib
@@ -27,7 +26,7 @@ from ..errors import DamagedResult, InputError
 from ..jsonio import json_text
 from ..manifest import verify_files
 from ..naming import RUNS_ROOT, fresh_folder, slug
-from ..output import CLI_HINTS, new_file, write_file, write_folder, write_new
+from ..output import CLI_HINTS, write_file, write_folder, write_new
 from . import spool
 from .spool import PARQUET_OPTIONS, ParquetTraces, arrow_table
 
@@ -232,20 +231,24 @@ class Result:
         for block in self.data.row_groups() if spooled else [self.data]:
             yield "".join(",".join(map(repr, row)) + "\n" for row in block.tolist())
 
-    def _mat(self) -> bytes:
-        """The traces as a MATLAB file (scipy.io.savemat): one struct ``emasim`` with a field
-        per column (a column vector), ``units`` (column -> unit), ``scenario`` and ``label``."""
+    def _write_mat(self, handle) -> None:
+        """The traces as a MATLAB file (scipy.io.savemat, written to the binary ``handle``): one
+        struct ``emasim`` with a field per column (a column vector), ``units`` (column ->
+        unit), ``scenario`` and ``label``. A spooled trace's columns are read one at a time,
+        as savemat writes each (:class:`_ColumnRead`): memory holds one column, not the trace."""
         from scipy.io import savemat
 
         check_mat_size(self.data.shape[0], len(self.columns))
         units = self.description.units if self.description is not None else {}
-        struct = {name: self[name] for name in self.columns}
+        spooled = isinstance(self.data, ParquetTraces)
+        struct = {
+            name: _ColumnRead(self.data, i) if spooled else self.data[:, i]
+            for i, name in enumerate(self.columns)
+        }
         struct["units"] = {name: units.get(name, "") for name in self.columns}
         struct["scenario"] = self.scenario.get("name", "")
         struct["label"] = self.meta.get("label", "")
-        buffer = io.BytesIO()
-        savemat(buffer, {"emasim": struct}, oned_as="column")
-        return buffer.getvalue()
+        savemat(handle, {"emasim": struct}, oned_as="column")
 
     def to_csv(self, path: str | Path, overwrite: bool = False) -> Path:
         """Write the traces as CSV (:meth:`_csv_blocks`, a block at a time) to the file
@@ -255,9 +258,9 @@ class Result:
                           what="path", replace_hint=OVERWRITE_HINT)  # fmt: skip
 
     def to_mat(self, path: str | Path, overwrite: bool = False) -> Path:
-        """Write the traces as a MATLAB file (:meth:`_mat`) to the file ``path``, atomically;
+        """Write the traces as a MATLAB file (:meth:`_write_mat`) to the file ``path``, atomically;
         ``overwrite`` replaces a trace file emasim wrote there, never any other file."""
-        return write_file(Path(path), self._mat(), force=overwrite, is_ours=_is_trace_mat,
+        return write_file(Path(path), self._write_mat, force=overwrite, is_ours=_is_trace_mat,
                           what="path", replace_hint=OVERWRITE_HINT)  # fmt: skip
 
     def plot(self):
@@ -302,13 +305,10 @@ class Result:
             _drawer(figures).save(self.drawn().plot, folder / "plot.png")
         if traces:
             path = folder / f"result.{trace_format}"
-            if trace_format == "parquet":
-                with new_file(path) as handle:
-                    self._write_parquet(handle)
-            elif trace_format == "csv":
+            if trace_format == "csv":
                 write_new(path, self._csv_blocks())
             else:
-                write_new(path, self._mat())
+                write_new(path, self._write_mat if trace_format == "mat" else self._write_parquet)
         meta = self.meta
         if self.description is not None:
             meta = {**meta, "run": self.description.to_json()}
@@ -451,6 +451,18 @@ def _parse(path: Path, parse):
         raise
     except Exception as err:
         raise DamagedResult(f"{path}: cannot be read ({type(err).__name__}: {err})") from None
+
+
+class _ColumnRead:
+    """Column ``index`` of a spooled trace, read when numpy asks for it (``np.asarray``):
+    scipy.io.savemat converts a struct's field to an array as it writes that field."""
+
+    def __init__(self, data: ParquetTraces, index: int):
+        self.data, self.index = data, index
+
+    def __array__(self, dtype=None, copy=None):
+        column = self.data.column(self.index)
+        return column if dtype is None else column.astype(dtype)
 
 
 def _description(run) -> "RunDescription | None":
