@@ -13,19 +13,24 @@ with an empty cache (cold compile, NUMBA_CACHE_DIR pointed at a new folder).
 Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the engine.
 Reproduce: three fresh ``emasim reproduce`` processes, every paper experiment and the report;
 the median.
+Tick split (``tick_split``): speed-step and bench-step at 10, 20 and 40 RK4 sub-steps a
+control tick, interleaved, best of 3 each; a straight line through the three splits a tick's time
+into its own work and the plant's sub-steps.
 Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasim and loaded
 the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
 after each, with the bytes its trace would take in memory (rows x columns x 8; a trace larger
 than emasim.sim.spool.SPOOL_BYTES streams to disk instead); 1000 s runs in a process of its own
 (MEMORY_S); and each of MEMORY_S through the command line, ``emasim run speed-sine -c speed=pi
---set duration_s=D`` (metrics, plot and result folder included), and the longest of speed-step
-the same way, whose peak RSS is the largest of its processes' (``RUSAGE_CHILDREN`` of a fresh
-process that runs it). Batch: the study
-facility's throughput on one and on two worker processes (``bench_study.study_scaling``);
-beside it, CEILING PID runs of the same Monte Carlo, cut short, their compiled loop alone
-(EngineRun.advance, the GIL released) on one and on two Python threads: the scaling this
-machine's two cores allow; and the same runs in one ``prange`` batch kernel
-(``batch_kernel.py``) on one and on two of numba's threads, interleaved with them. Monte Carlo:
+--set duration_s=D`` (metrics, plot and result folder included), the longest of speed-step
+the same way, and speed-sine written as a MAT-file (``--format mat``) for the longest a MAT-file
+variable holds (MAT_S, 2.1 GB of trace, or the longest of MEMORY_S if shorter), whose peak RSS
+is the largest of its processes' (``RUSAGE_CHILDREN`` of a fresh process that runs it).
+Batch: the study facility's throughput on one and on two worker processes
+(``bench_study.study_scaling``); beside it, CEILING PID runs of the same Monte Carlo, cut short,
+their compiled loop alone (EngineRun.advance, the GIL released) on one and on two Python
+threads: the scaling this machine's two cores allow; and the same runs in one ``prange`` batch
+kernel (``batch_kernel.py``) on one and on two of numba's threads, interleaved with them.
+Monte Carlo:
 the wall time of the 200-run bench-step robustness study of each controller set
 (``bench_study.monte_carlo_seconds``). FMU: ``bench_fmu.fmu_figures``, the FMI layer's cost per
 ``doStep``. Acceptance: the wall time of the whole battery on bench-step's two controller sets
@@ -78,8 +83,11 @@ QUICK_S = 0.05
 CEILING = (16, 2.0)  # PID runs of the batch's Monte Carlo, simulated s each, for the loop alone
 QUICK_REFERENCE_S = 0.005
 MEMORY_S = (100.0, 1000.0)
+MAT_S = 900.0  # speed-sine's 29 columns at 10 kHz: 2.09 GB, under a MAT-file variable's 2 GiB
 QUICK_MEMORY_S = 1.0
 BASELINE_S = 1e-3
+SPLIT_SCENARIOS = ("speed-step", "bench-step")  # tick_split: the lumped plant and the bench
+SPLIT_SUBSTEPS = (10, 20, 40)  # the shipped 10 sub-steps a tick, and 2 and 4 times as many
 
 QUICK_STARTUP = ("help", "input_error")
 
@@ -224,6 +232,46 @@ def reference_speedup(duration_s: float = 0.05) -> dict:
     }
 
 
+def tick_split(
+    runs: int = 3, duration_s: float | None = None, names=SPLIT_SCENARIOS, substeps=SPLIT_SUBSTEPS
+) -> dict:
+    """Where a control tick's time goes: each scenario (its RTF table's controllers) run with
+    each of ``substeps`` RK4 sub-steps a tick (``solver.step_s`` = Ts / n, nothing else
+    changed), ``runs`` rounds interleaved, the best of each; a least-squares line through them,
+    RTF(n) = (tick + n sub_step) / Ts, splits the time into the tick's own work (sensors,
+    controllers, drive limits, recording) and the plant's sub-steps (four right-hand sides
+    and the bristle's exact steps each). name -> the seconds of each and the shares at the
+    shipped sub-step."""
+    out = {}
+    for name in names:
+        base = load_scenario(name)
+        ts, shipped = (
+            base.solver.sample_period_s,
+            round(base.solver.sample_period_s / base.solver.step_s),
+        )
+        setups = {}
+        for n in substeps:
+            setup = load_scenario(name, settings=[f"solver.step_s={ts / n!r}"]).setup()
+            setups[n] = setup if duration_s is None else setup.with_(duration_s=duration_s)
+        simulate(setups[substeps[0]].with_(duration_s=10 * ts))  # load compiled code
+        best = dict.fromkeys(substeps, float("inf"))
+        for _ in range(runs):
+            for n, setup in setups.items():
+                start = time.perf_counter()
+                simulate(setup)
+                best[n] = min(best[n], (time.perf_counter() - start) / setup.duration_s)
+        sub_step, tick = np.polyfit(list(best), [ts * best[n] for n in best], 1)
+        out[name] = {
+            "substeps": {str(n): rtf for n, rtf in best.items()},
+            "shipped_substeps": shipped,
+            "tick_s": float(tick),
+            "sub_step_s": float(sub_step),
+            "plant_rtf": float(shipped * sub_step / ts),
+            "rtf": float((tick + shipped * sub_step) / ts),
+        }
+    return out
+
+
 def reproduce_seconds(runs: int = 3) -> float:
     """Median wall time of ``runs`` fresh ``emasim reproduce`` processes (warm numba cache),
     every experiment."""
@@ -240,26 +288,33 @@ def peak_memory(*durations_s: float) -> list[dict]:
     return [json.loads(line) for line in proc.stdout.splitlines()]
 
 
-def command_line_memory(duration_s: float, scenario: str = "speed-sine") -> dict:
-    """Peak RSS of ``emasim run SCENARIO -c speed=pi --set duration_s=D`` (the largest of its
-    processes, CLI_MEMORY_CHILD), in a new temporary folder, with the trace's bytes."""
-    args = ["run", scenario, "-c", "speed=pi", "--set", f"duration_s={duration_s:g}"]
+def command_line_memory(
+    duration_s: float, scenario: str = "speed-sine", trace_format: str = "parquet"
+) -> dict:
+    """Peak RSS of ``emasim run SCENARIO -c speed=pi --set duration_s=D --format F`` (the
+    largest of its processes, CLI_MEMORY_CHILD), in a new temporary folder, with the trace's
+    bytes."""
+    args = ["run", scenario, "-c", "speed=pi", "--set", f"duration_s={duration_s:g}",
+            "--format", trace_format]  # fmt: skip
     with tempfile.TemporaryDirectory() as out:
         cmd = [sys.executable, "-c", CLI_MEMORY_CHILD, f"{out}/run", *args]
         proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=out,
                               env=user_environment())  # fmt: skip
-    return {"scenario": scenario, "duration_s": duration_s, **json.loads(proc.stdout)}
+    return {"scenario": scenario, "duration_s": duration_s, "format": trace_format,
+            **json.loads(proc.stdout)}  # fmt: skip
 
 
 def memory_figures(durations_s) -> dict:
     """The baseline (BASELINE_S: import and compiled code) and the first duration in one
     process, every other duration in a process of its own; each duration through the command
-    line, and the longest also of speed-step (a step's metrics, in passes)."""
+    line, the longest also of speed-step (a step's metrics, in passes), and speed-sine's MAT-file
+    for the longest of them up to MAT_S."""
     baseline, *runs = peak_memory(BASELINE_S, durations_s[0])
     for duration in durations_s[1:]:
         runs += peak_memory(duration)
     cli = [command_line_memory(duration) for duration in durations_s]
     cli.append(command_line_memory(durations_s[-1], "speed-step"))
+    cli.append(command_line_memory(min(durations_s[-1], MAT_S), trace_format="mat"))
     return {"baseline": baseline, "runs": runs, "command_line": cli}
 
 
@@ -328,6 +383,7 @@ def quick_results() -> dict:
     results["scenario_duration_s"], results["scenario_controllers"] = scenario_runs(QUICK_S)
     results["controller_real_time_factor"] = controller_real_time_factors(1, QUICK_S)
     results["reference"] = reference_speedup(QUICK_REFERENCE_S)
+    results["tick_split"] = tick_split(1, QUICK_S)
     results["cli_real_time_factor"] = cli_real_time_factors(1, QUICK_S, ("speed-step",))
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
@@ -370,6 +426,7 @@ SECTIONS = {  # the full run's figures that --update re-measures alone
     ),
     "monte_carlo": lambda: bench_study.monte_carlo_seconds(bench_study.MC_RUNS),
     "reference": reference_speedup,
+    "tick_split": tick_split,
 }
 
 
@@ -443,6 +500,12 @@ def report(results: dict) -> None:
         f"engine vs scipy Radau reference: {ref['engine_s']:.4f} s vs "
         f"{ref['reference_s']:.2f} s, speed-up {ref['speedup']:.0f}x"
     )
+    for name, split in results["tick_split"].items():
+        print(
+            f"{name}: a tick's own work {split['tick_s'] * 1e9:.0f} ns, a sub-step "
+            f"{split['sub_step_s'] * 1e9:.0f} ns; at {split['shipped_substeps']} sub-steps the "
+            f"plant's RTF {split['plant_rtf']:.4f} of {split['rtf']:.4f}"
+        )
     memory = results["peak_memory"]
     print(f"peak RSS, import + 1 ms run: {memory['baseline']['peak_rss_bytes'] / 1e6:.0f} MB")
     for run in memory["runs"]:
@@ -454,7 +517,7 @@ def report(results: dict) -> None:
     for run in memory["command_line"]:
         print(
             f"peak RSS, emasim run {run.get('scenario', 'speed-sine')} -c speed=pi, "
-            f"{run['duration_s']:g} s: "
+            f"{run['duration_s']:g} s, {run.get('format', 'parquet')}: "
             f"{run['peak_rss_bytes'] / 1e6:.0f} MB, trace {run['trace_bytes'] / 1e6:.1f} MB"
         )
     bench_study.report(results["batch"], results.get("monte_carlo"))

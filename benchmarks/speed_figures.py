@@ -126,6 +126,7 @@ def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
             f"{sig(controllers[slowest], 3)} (`{slowest}`)",
         )
     )
+    rows += split_rows(results)
     ref = results["reference"]
     rows.append(
         (
@@ -136,6 +137,28 @@ def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
             f"{seconds(ref['reference_s'])})",
         )
     )
+    return rows
+
+
+def split_rows(results: dict) -> list[tuple[str, str, str]]:
+    """Where a tick's time goes (bench_engine.tick_split): the plant's RK4 sub-steps against
+    the tick's own work."""
+    rows = []
+    for name, split in results.get("tick_split", {}).items():
+        counts = ", ".join(split["substeps"])
+        share = split["plant_rtf"] / split["rtf"]
+        rows.append(
+            (
+                f"`{name}`: a control tick's time split into its own work (sensors, controllers, "
+                f"drive limits, recording) and the plant's {split['shipped_substeps']} RK4 "
+                "sub-steps (four right-hand sides each)",
+                f"a straight line through the RTF at {counts} sub-steps a tick (`solver.step_s`), "
+                "best of 3 each, interleaved, in one process",
+                f"the sub-steps alone RTF {sig(split['plant_rtf'], 3)} of {sig(split['rtf'], 3)} "
+                f"({100 * share:.0f} %): {sig(1e9 * split['sub_step_s'], 3)} ns a sub-step, "
+                f"{sig(1e9 * split['tick_s'], 3)} ns a tick's own work",
+            )
+        )
     return rows
 
 
@@ -276,6 +299,12 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
     return rows
 
 
+def format_flag(run: dict) -> str:
+    """`` --format F`` of a command line that wrote its trace in another format than Parquet."""
+    trace_format = run.get("format", "parquet")
+    return "" if trace_format == "parquet" else f" --format {trace_format}"
+
+
 def memory_rows(results: dict) -> list[tuple[str, str, str]]:
     memory = results.get("peak_memory")
     if memory is None:
@@ -304,7 +333,7 @@ def memory_rows(results: dict) -> list[tuple[str, str, str]]:
         rows.append(
             (
                 f"`emasim run {run.get('scenario', 'speed-sine')} -c speed=pi --set "
-                f"duration_s={run['duration_s']:g}` "
+                f"duration_s={run['duration_s']:g}{format_flag(run)}` "
                 f"(metrics, plot and result folder), a trace of {run['columns']} columns "
                 f"({megabytes(run['trace_bytes'])})",
                 "peak RSS of the largest of its processes (`RUSAGE_CHILDREN` of a fresh process "
