@@ -110,7 +110,8 @@ for text in sys.argv[1:]:
     del result
 """
 # Run in a fresh process: the command line (argv), then print the peak RSS of the largest of its
-# processes (RUSAGE_CHILDREN) and the trace's bytes that its meta.json counts.
+# processes (RUSAGE_CHILDREN) and the trace's bytes that its meta.json counts. Its processes are
+# children of this small one, so their figures hold none of the benchmark's memory (see RELAY).
 CLI_MEMORY_CHILD = """
 import json, pathlib, resource, subprocess, sys
 out = pathlib.Path(sys.argv[1])
@@ -280,10 +281,18 @@ def reproduce_seconds(runs: int = 3) -> float:
     )
 
 
+# Run the command line (argv) as a child of this small process. A process started straight
+# from this benchmark would count the benchmark's own memory in its ru_maxrss: Linux carries the
+# peak RSS of the memory a process replaces at exec into its own (the parent's, after a fork or
+# vfork), so a child of a 300 MB parent reads 300 MB however little it uses.
+RELAY = "import subprocess, sys; sys.exit(subprocess.run(sys.argv[1:]).returncode)"
+
+
 def peak_memory(*durations_s: float) -> list[dict]:
     """Peak RSS of one fresh process after simulating each of ``durations_s`` of speed-sine in
-    turn, and the trace's bytes (MEMORY_CHILD)."""
-    cmd = [sys.executable, "-c", MEMORY_CHILD, *(repr(float(d)) for d in durations_s)]
+    turn, and the trace's bytes (MEMORY_CHILD, started through RELAY)."""
+    cmd = [sys.executable, "-c", RELAY, sys.executable, "-c", MEMORY_CHILD]
+    cmd += [repr(float(d)) for d in durations_s]
     proc = subprocess.run(cmd, check=True, capture_output=True, text=True)
     return [json.loads(line) for line in proc.stdout.splitlines()]
 
