@@ -506,7 +506,10 @@ def rocker_reaction(torque, load_model, s, s_dot, arm, x, p, dx, x0, p0, hinges)
     (a co-simulation solves the rudder side). The two pushes are kept apart because the rod's
     equation sums them at different places (emasim.plant.elements.rod). The slices are made
     here, with the linkage alone: views made at every call of the right-hand side slowed the
-    loop of every plant without the linkage (benchmarks/bench_paired.py)."""
+    loop of every plant without the linkage (benchmarks/bench_paired.py). On the bench they
+    cost about 30 ns of a right-hand side's 190 (their reference counts); handing the
+    linkage the plant's whole arrays with these offsets instead measured slower (216 against
+    187 ns a call, interleaved, in one process), so the views stay."""
     if load_model == LOAD_LUMPED:
         return 0.0, torque / arm, 0.0
     if load_model == LOAD_HELD:
