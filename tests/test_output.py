@@ -14,6 +14,7 @@ import sys
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from emasim import output
@@ -269,6 +270,20 @@ def test_files_follow_the_same_rules(tmp_path):
         write_file(users, "x", force=True, is_ours=lambda p: False, what="x")
     assert users.read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.toml", "tuned.toml"]
+
+
+def test_a_file_a_function_or_blocks_are_written_as_given(tmp_path):
+    """write_new copies a file given by its path byte for byte (a block at a time: this one
+    spans three blocks of 1 MiB), hands a function the new file's handle, and writes
+    blocks of text and bytes in turn."""
+    source = tmp_path / "built.fmu"
+    source.write_bytes(np.random.default_rng(3).bytes(2 * 2**20 + 123))
+    write_new(tmp_path / "copy.fmu", source)
+    write_new(tmp_path / "called.bin", lambda handle: handle.write(b"from a function"))
+    write_new(tmp_path / "blocks.txt", ["a,", b"b", "\n"])
+    assert (tmp_path / "copy.fmu").read_bytes() == source.read_bytes()
+    assert (tmp_path / "called.bin").read_bytes() == b"from a function"
+    assert (tmp_path / "blocks.txt").read_text() == "a,b\n"
 
 
 def test_force_checks_a_file_again_just_before_replacing_it(tmp_path, monkeypatch):

@@ -27,6 +27,7 @@ import errno
 import fcntl
 import os
 import re
+import shutil
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import BinaryIO
@@ -151,9 +152,12 @@ def _journal(build: Path, line: str) -> None:
 def write_new(path: Path, content: Content) -> None:
     """Write ``content`` (text, as UTF-8, or bytes, or an iterable of them written one block at
     a time, or a file's path to copy, or a function that writes to the binary handle it is
-    given) to a new file through :func:`new_file`."""
-    content = content.read_bytes() if isinstance(content, Path) else content
+    given) to a new file through :func:`new_file`. A file is copied a block at a time."""
     with new_file(path) as handle:
+        if isinstance(content, Path):
+            with open(content, "rb") as source:
+                shutil.copyfileobj(source, handle, 1 << 20)
+            return
         if callable(content):
             content(handle)
             return
