@@ -21,6 +21,7 @@ import pytest
 from emasim.errors import InputError
 from emasim.scenarios.loader import load_scenario
 from emasim.scenarios.schema import rudder_rod_grid
+from emasim.signals import MAX_TABLE_POINTS, encode, signal_values
 from emasim.sim.engine import simulate
 
 RUDDER = "loop.position_feedback='rudder'"
@@ -46,6 +47,23 @@ def test_on_the_linkage_the_loop_reads_the_rudder_through_the_kinematics():
     assert np.max(np.abs(result["measured_position_m"] - expected)) < 1e-12
     play = np.abs(result["measured_position_m"] - result["actuator_position_m"])
     assert play.max() > 1e-7  # the clearances (0.01 mm at four hinges) are inside the loop
+
+
+def test_a_rudder_command_longer_than_a_scenario_table_sets_up():
+    """The linkage's rod command is the rudder command through the kinematics, a point every
+    millisecond: 1001 s of it is more points than a scenario file's table may hold
+    (signals.MAX_TABLE_POINTS), and emasim builds it all the same (it failed with an internal
+    error). It is the kinematics' grid interpolated at the command, to the chord between its
+    points."""
+    scenario = load_scenario("bench-sine", settings=["duration_s=1001"]).variants()[0][1]
+    setup = scenario.setup()
+    assert setup.reference[2] / 2 == 1_001_001 > MAX_TABLE_POINTS
+    angles, rods = rudder_rod_grid(scenario.plant)
+    t = np.array([0.0, 0.0005, 3.21, 500.0, 1000.9995, 1001.0])
+    angle = signal_values(encode(scenario.reference.rudder_deg, np.radians(1.0)), t)
+    rod = signal_values(setup.reference, t)
+    expected = np.interp(angle, angles, rods)  # a sine's chord over 1 ms: 1e-8 of its swing
+    assert np.all(np.abs(rod - expected) < 1e-6 * np.ptp(rods))
 
 
 def test_motor_feedback_reads_the_encoder_as_the_nut_travel():

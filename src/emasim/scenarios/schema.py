@@ -24,7 +24,7 @@ from ..plant import actuator as A
 from ..plant.elements.linkage import rudder_angle_of_extension
 from ..plant.parameters import MM, RPM, PlantParams, SensorParams, Strict
 from ..plant.presets import PRESETS, SENSOR_PRESETS
-from ..signals import Table, Term, encode, lookup_table, signal_value, signal_values
+from ..signals import Term, encode, lookup_table, signal_samples, signal_values
 from ..sim.trace import TRACE_COLUMNS
 
 if TYPE_CHECKING:
@@ -185,7 +185,9 @@ class Reference(Strict):
         """SI signal: motor speed (rad/s) or rod position (m).
 
         A rudder angle goes through the lumped arm, or, with the linkage, through its rigid
-        inverse kinematics: sampled every millisecond over the run and interpolated (a table).
+        inverse kinematics: sampled every millisecond over the run and interpolated (a table,
+        built here, so of any length: a Table term's MAX_TABLE_POINTS bounds what a scenario
+        file may give, not the runs emasim may make).
         """
         if self.speed_rpm:
             return encode(self.speed_rpm, RPM)
@@ -196,8 +198,7 @@ class Reference(Strict):
         angle_grid, s_grid = rudder_rod_grid(plant)
         angle = encode(self.rudder_deg, math.radians(1.0))
         times = np.arange(0.0, duration_s + 1e-3, 1e-3)
-        rod = np.interp([signal_value(angle, t) for t in times], angle_grid, s_grid)
-        return encode([Table(time_s=list(times), values=list(rod))])
+        return lookup_table(times, np.interp(signal_samples(angle, times), angle_grid, s_grid))
 
 
 class Load(Strict):
