@@ -22,7 +22,8 @@ after each, with the bytes its trace would take in memory (rows x columns x 8; a
 than emasim.sim.spool.SPOOL_BYTES streams to disk instead); 1000 s runs in a process of its own
 (MEMORY_S); and each of MEMORY_S through the command line, ``emasim run speed-sine -c speed=pi
 --set duration_s=D`` (metrics, plot and result folder included), the longest of speed-step
-the same way, and speed-sine written as a MAT-file (``--format mat``) for the longest a MAT-file
+the same way, bench-step's PID cascade with every column at 10 kHz (BENCH_EXTRA), and
+speed-sine written as a MAT-file (``--format mat``) for the longest a MAT-file
 variable holds (MAT_S, 2.1 GB of trace, or the longest of MEMORY_S if shorter), whose peak RSS
 is the largest of its processes' (``RUSAGE_CHILDREN`` of a fresh process that runs it).
 Batch: the study facility's throughput on one and on two worker processes
@@ -83,6 +84,8 @@ QUICK_S = 0.05
 CEILING = (16, 2.0)  # PID runs of the batch's Monte Carlo, simulated s each, for the loop alone
 QUICK_REFERENCE_S = 0.005
 MEMORY_S = (100.0, 1000.0)
+# bench-step's PID cascade with every column recorded at 10 kHz (it records at 1 kHz as shipped)
+BENCH_EXTRA = ("-c", "position=pid", "--set", "solver.record_period_s=0.0001")
 MAT_S = 900.0  # speed-sine's 29 columns at 10 kHz: 2.09 GB, under a MAT-file variable's 2 GiB
 QUICK_MEMORY_S = 1.0
 BASELINE_S = 1e-3
@@ -298,31 +301,33 @@ def peak_memory(*durations_s: float) -> list[dict]:
 
 
 def command_line_memory(
-    duration_s: float, scenario: str = "speed-sine", trace_format: str = "parquet"
+    duration_s: float, scenario: str = "speed-sine", trace_format: str = "parquet", extra=()
 ) -> dict:
-    """Peak RSS of ``emasim run SCENARIO -c speed=pi --set duration_s=D --format F`` (the
+    """Peak RSS of ``emasim run SCENARIO -c speed=pi EXTRA --set duration_s=D --format F`` (the
     largest of its processes, CLI_MEMORY_CHILD), in a new temporary folder, with the trace's
     bytes."""
-    args = ["run", scenario, "-c", "speed=pi", "--set", f"duration_s={duration_s:g}",
+    args = ["run", scenario, "-c", "speed=pi", *extra, "--set", f"duration_s={duration_s:g}",
             "--format", trace_format]  # fmt: skip
     with tempfile.TemporaryDirectory() as out:
         cmd = [sys.executable, "-c", CLI_MEMORY_CHILD, f"{out}/run", *args]
         proc = subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=out,
                               env=user_environment())  # fmt: skip
     return {"scenario": scenario, "duration_s": duration_s, "format": trace_format,
-            **json.loads(proc.stdout)}  # fmt: skip
+            "extra": " ".join(extra), **json.loads(proc.stdout)}  # fmt: skip
 
 
 def memory_figures(durations_s) -> dict:
     """The baseline (BASELINE_S: import and compiled code) and the first duration in one
     process, every other duration in a process of its own; each duration through the command
-    line, the longest also of speed-step (a step's metrics, in passes), and speed-sine's MAT-file
-    for the longest of them up to MAT_S."""
+    line, the longest also of speed-step (a step's metrics, in passes) and of bench-step with
+    every column at 10 kHz (BENCH_EXTRA: its metrics read their columns whole), and speed-sine's
+    MAT-file for the longest of them up to MAT_S."""
     baseline, *runs = peak_memory(BASELINE_S, durations_s[0])
     for duration in durations_s[1:]:
         runs += peak_memory(duration)
     cli = [command_line_memory(duration) for duration in durations_s]
     cli.append(command_line_memory(durations_s[-1], "speed-step"))
+    cli.append(command_line_memory(durations_s[-1], "bench-step", extra=BENCH_EXTRA))
     cli.append(command_line_memory(min(durations_s[-1], MAT_S), trace_format="mat"))
     return {"baseline": baseline, "runs": runs, "command_line": cli}
 

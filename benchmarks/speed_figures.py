@@ -301,9 +301,11 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
 
 
 def format_flag(run: dict) -> str:
-    """`` --format F`` of a command line that wrote its trace in another format than Parquet."""
+    """The command line's other arguments (bench_engine.command_line_memory's ``extra``), and
+    `` --format F`` where it wrote its trace in another format than Parquet."""
     trace_format = run.get("format", "parquet")
-    return "" if trace_format == "parquet" else f" --format {trace_format}"
+    extra = f" {run['extra']}" if run.get("extra") else ""
+    return extra + ("" if trace_format == "parquet" else f" --format {trace_format}")
 
 
 def memory_rows(results: dict) -> list[tuple[str, str, str]]:
