@@ -27,6 +27,10 @@ from emasim.sim.setup import Setup, plant_facts
 facts_of = plant_facts  # what a controller design may know of a plant
 
 RPM = math.pi / 30.0  # rad/s per rpm
+# Not a speed check: the one bound on a child process or a cluster's start that stops a hang,
+# far beyond any run here (a cold numba compile on a loaded machine included); a slow machine
+# never fails a test. Speed is measured in benchmarks/, as ratios and real-time factors.
+HANG_GUARD_S = 1800
 
 
 def frictionless_sea805(**packed_overrides) -> tuple[PlantParams, np.ndarray]:

@@ -28,6 +28,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from helpers import HANG_GUARD_S
 from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from typer.testing import CliRunner
@@ -64,9 +65,6 @@ USER_TEXT = b"\\documentclass{article}\n% three years of work\n"
 USER_MODE = 0o640
 SHORT = ["--set", "duration_s=0.05", "--no-plot"]  # a refused case that is accepted stays short
 RUN_FILES = {MARKER, "result.parquet", "metrics.json", "meta.json", "scenario.toml"}
-# Not a speed check: only a bound that stops a hung child process, far beyond any run here
-# (a cold numba compile on a loaded machine included); a slow machine never fails a test.
-HANG_GUARD_S = 1800
 
 
 # --- the working folder, its snapshot, and the refusal check -----------------------------------

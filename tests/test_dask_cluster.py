@@ -11,12 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import HANG_GUARD_S
 
 from emasim.experiments.store import read_table
 
 STUDY = ["study", "speed-step", "--label", "PI", "--set", "duration_s=0.02"]
 STUDY += ["--vary", "plant.backlash.width_mm=0.05,0.1,0.2"]
-START_S = 90.0  # Dask's own bounds on connecting and on waiting for the workers
 
 
 def dask(*args: str, log: Path) -> subprocess.Popen:
@@ -37,7 +37,7 @@ def free_port() -> int:
 @pytest.fixture
 def cluster(tmp_path):
     """A scheduler on 127.0.0.1 and two single-threaded worker processes; its address, once
-    both workers have joined (Dask's connect and wait_for_workers, each bounded by START_S,
+    both workers have joined (Dask's connect and wait_for_workers, each bounded by HANG_GUARD_S,
     raise rather than hang)."""
     from distributed import Client
 
@@ -70,8 +70,8 @@ def cluster(tmp_path):
                     log=tmp_path / f"worker-{k}.log",
                 )
             )
-        with Client(address, timeout=START_S) as client:
-            client.wait_for_workers(2, timeout=START_S)
+        with Client(address, timeout=HANG_GUARD_S) as client:
+            client.wait_for_workers(2, timeout=HANG_GUARD_S)
         yield address
     finally:
         for process in reversed(processes):
@@ -88,13 +88,16 @@ def executed(address: str) -> dict[str, int]:
     """worker -> how many tasks it has run."""
     from distributed import Client
 
-    with Client(address, timeout=START_S) as client:
+    with Client(address, timeout=HANG_GUARD_S) as client:
         return client.run(lambda dask_worker: dask_worker.state.executed_count)
 
 
 def emasim(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "emasim", *args], capture_output=True, text=True, timeout=600
+        [sys.executable, "-m", "emasim", *args],
+        capture_output=True,
+        text=True,
+        timeout=HANG_GUARD_S,
     )
 
 

@@ -18,12 +18,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+from helpers import HANG_GUARD_S
 from PIL import Image
 
 ROOT = Path(__file__).parents[1]
 EXAMPLES = ROOT / "examples"
 GALLERY = ROOT / "docs" / "examples.md"
-HANG_GUARD_S = 1800  # stops a hung example; not a speed check
 FIGURES = {  # example -> the figures it draws, the gallery's docs/examples/NAME
     "design_a_controller": ("design-bode.png",),
     "compare_under_backlash": ("backlash-error.png",),
