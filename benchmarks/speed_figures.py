@@ -300,7 +300,7 @@ def process_rows(results: dict) -> list[tuple[str, str, str]]:
     return rows
 
 
-def format_flag(run: dict) -> str:
+def more_arguments(run: dict) -> str:
     """The command line's other arguments (bench_engine.command_line_memory's ``extra``), and
     `` --format F`` where it wrote its trace in another format than Parquet."""
     trace_format = run.get("format", "parquet")
@@ -336,7 +336,7 @@ def memory_rows(results: dict) -> list[tuple[str, str, str]]:
         rows.append(
             (
                 f"`emasim run {run.get('scenario', 'speed-sine')} -c speed=pi --set "
-                f"duration_s={run['duration_s']:g}{format_flag(run)}` "
+                f"duration_s={run['duration_s']:g}{more_arguments(run)}` "
                 f"(metrics, plot and result folder), a trace of {run['columns']} columns "
                 f"({megabytes(run['trace_bytes'])})",
                 "peak RSS of the largest of its processes (`RUSAGE_CHILDREN` of a fresh process "

@@ -157,12 +157,11 @@ def write_new(path: Path, content: Content) -> None:
         if isinstance(content, Path):
             with open(content, "rb") as source:
                 shutil.copyfileobj(source, handle, 1 << 20)
-            return
-        if callable(content):
+        elif callable(content):
             content(handle)
-            return
-        for block in [content] if isinstance(content, str | bytes) else content:
-            handle.write(block.encode() if isinstance(block, str) else block)
+        else:
+            for block in [content] if isinstance(content, str | bytes) else content:
+                handle.write(block.encode() if isinstance(block, str) else block)
 
 
 def check_target(path: Path, force: bool, what: str = "--out", hints=CLI_HINTS, is_ours=None,
