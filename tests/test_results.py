@@ -1,5 +1,6 @@
 """emasim runs list / prune: only emasim's results, only their own files, a dry run by default."""
 
+import json
 import os
 import time
 
@@ -40,7 +41,32 @@ def test_prune_removes_only_old_emasim_results_and_never_a_users_file(tmp_path):
     assert "kept, it holds files emasim did not write (my-notes.txt)" in done.output
     assert (mine / "data.csv").read_text() == "1,2\n"
     listing = runner.invoke(app, ["runs", "list", str(root)])
-    assert listing.exit_code == 0 and "new" in listing.output and "annotated" in listing.output
+    assert listing.exit_code == 0, listing.output
+    assert "speed-step/new" in listing.output and "speed-step/annotated" in listing.output
+
+
+def test_runs_list_names_each_result_whole_under_any_root_at_any_width(tmp_path, monkeypatch):
+    """Each result relative to the root given, never cut mid-word: a root 200 characters deep
+    and a 40-column console (the table is printed at the width its rows need); ``--json``
+    gives the full paths. ``prune`` names them the same way, each on one line."""
+    from emasim.cli import console
+
+    root = tmp_path.joinpath(*["a-rather-long-folder-name"] * 8)
+    names = ["speed-step/PI-against-SMC-2026-12-07", "studies/monte-carlo-of-the-bench"]
+    for age, name in enumerate(names):
+        result_at(root / name, 10 * 86400 - age)
+    monkeypatch.setattr(console, "width", 40)
+    runner = CliRunner()
+    listing = runner.invoke(app, ["runs", "list", str(root)])
+    assert listing.exit_code == 0, listing.output
+    table = listing.stdout
+    assert all(name in table for name in names) and str(tmp_path) not in table, table
+    as_json = runner.invoke(app, ["runs", "list", str(root), "--json"])
+    assert [row["folder"] for row in json.loads(as_json.stdout)] == [
+        str((root / name).resolve()) for name in names
+    ]
+    dry = runner.invoke(app, ["runs", "prune", str(root), "--older-than", "1d"])
+    assert all(f"would remove {name} (" in dry.stdout for name in names), dry.stdout
 
 
 def test_keep_counts_the_newest_of_each_folder():

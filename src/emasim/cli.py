@@ -165,7 +165,8 @@ def main(
 class _LineHandler(RichHandler):
     """rich's log handler on stderr, a record a line as the command line prints it: no time,
     level or path columns (nor the grid that pads them to the terminal's width), a warning
-    marked ``warning:``, the message never read as markup."""
+    marked ``warning:``, the message never read as markup, and never wrapped by rich (a long
+    path would be cut mid-word at the terminal's width; the terminal wraps the line itself)."""
 
     def __init__(self) -> None:
         super().__init__(
@@ -179,8 +180,11 @@ class _LineHandler(RichHandler):
         )
         self.setFormatter(_MarkedFormatter())
 
-    def render(self, *, record, traceback, message_renderable):
-        return message_renderable
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self.console.print(self.render_message(record, self.format(record)), soft_wrap=True)
+        except Exception:
+            self.handleError(record)
 
 
 class _MarkedFormatter(logging.Formatter):
@@ -1075,23 +1079,46 @@ RUNS_ROOT_HELP = "the folder to look in (default: runs)"
 @runs_app.command("list")
 def runs_list(
     root: Annotated[Path, typer.Argument(help=RUNS_ROOT_HELP)] = Path("runs"),
+    as_json: Annotated[
+        bool, typer.Option("--json", help="one JSON list on stdout, each result's full path")
+    ] = False,
 ) -> None:
-    """List every emasim result under a folder, oldest first: its kind, age and size."""
+    """List every emasim result under a folder, oldest first: its kind, age and size; each
+    result named relative to the folder (--json: its full path)."""
+    import json
+
     from .results import find
 
     try:
         found = find(root)
     except EmasimError as err:
         _fail(err)
-    table = Table(title=f"emasim results under {root}")
-    for name, justify in (("result", "left"), ("kind", "left"), ("written", "left")):
-        table.add_column(name, justify=justify, overflow="fold")
-    table.add_column("MB", justify="right")
-    for result in found:
-        written = time.strftime("%Y-%m-%d %H:%M", time.localtime(result.written))
-        table.add_row(str(result.folder), result.kind, written, f"{result.size / 1e6:.3g}")
-    console.print(table)
-    log.info(f"{len(found)} results, {sum(r.size for r in found) / 1e6:.3g} MB")
+    if as_json:
+        rows = [{"folder": str(r.folder.resolve()), "kind": r.kind, "written": r.written,
+                 "bytes": r.size} for r in found]  # fmt: skip
+        print(json.dumps(rows, indent=1))
+        return
+    rows = [("result", "kind", "written", "MB")] + [
+        (
+            _under(r.folder, root),
+            r.kind,
+            time.strftime("%Y-%m-%d %H:%M", time.localtime(r.written)),
+            f"{r.size / 1e6:.3g}",
+        )
+        for r in found
+    ]
+    widths = [max(len(row[i]) for row in rows) for i in range(3)]
+    for *left, size in rows:  # plain lines, never cut or folded: the terminal wraps them
+        cells = [cell.ljust(width) for cell, width in zip(left, widths, strict=True)]
+        line = "  ".join([*cells, size.rjust(len("MB"))])
+        console.print(line.rstrip(), soft_wrap=True, markup=False, highlight=False)
+    total_mb = sum(r.size for r in found) / 1e6
+    log.info(f"{len(found)} emasim results under {root}, {total_mb:.3g} MB")
+
+
+def _under(folder: Path, root: Path) -> str:
+    """``folder`` relative to ``root`` (``.`` for the root itself), with forward slashes."""
+    return folder.relative_to(root).as_posix()
 
 
 @runs_app.command("prune")
@@ -1116,14 +1143,27 @@ def runs_prune(
     freed = 0
     for result in chosen:
         if not yes:
-            console.print(f"would remove {result.folder} ({result.size / 1e6:.3g} MB)")
+            console.print(
+                f"would remove {_under(result.folder, root)} ({result.size / 1e6:.3g} MB)",
+                soft_wrap=True,
+                markup=False,
+                highlight=False,
+            )
             continue
         kept = remove(result.folder)
         if kept:
-            log.warning(f"{result.folder}: kept, it holds files emasim did not write ({kept[0]})")
+            log.warning(
+                f"{_under(result.folder, root)}: kept, it holds files emasim did not write "
+                f"({kept[0]})"
+            )
         else:
             freed += result.size
-            console.print(f"removed {result.folder}")
+            console.print(
+                f"removed {_under(result.folder, root)}",
+                soft_wrap=True,
+                markup=False,
+                highlight=False,
+            )
     if yes:
         log.info(f"{len(chosen)} results chosen; freed {freed / 1e6:.3g} MB")
     else:
