@@ -11,6 +11,16 @@ deterministic (two runs in one process agree bit for bit, sliding-mode sets incl
 comparison allows only 1e-12 of each column's scale: the round-off of a reordered sum, not a
 changed model.
 
+They are a same-code regression net, never a check of the physics (docs/model.md, "The accuracy
+contract", holds that): last bits change them. Stored again on 2026-12-07, on a machine whose
+numpy finds AVX2 but not AVX-512 (X86_V3): there the idealised bench-step's and bench-sine's
+traces differed from the stored ones from their first row on (the rod command at t = 0 by
+8e-15 of itself, then by up to twice a column's scale on bench-sine), every other scenario's
+bit for bit. The rudder table's squares went through np.float_power, which numpy computes by
+the processor's SIMD (SVML on AVX-512); they now go through libm's pow on every machine
+(emasim.plant.elements.linkage), which gives this machine's values unchanged. bench-identify is
+fingerprinted since.
+
 The end stops (emasim.plant.elements.stops) came after the fingerprints: a run that stays inside the
 stroke must be unchanged, and one that leaves it is compared up to its last stored row before
 the first stored row beyond the stroke (position-step's PI sets overshoot 120 mm by 5.8 mm,

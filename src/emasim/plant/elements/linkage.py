@@ -373,7 +373,9 @@ def _circle_intersections(c1, r1, c2, r2, near) -> np.ndarray:
 # tables, and the runs that follow them, keep their last bits: a length as np.linalg.norm of
 # one point (a dot product), a square as a scalar's ** 2 (libm's pow, which differs from x * x
 # in the last bit for about 0.1 % of numbers), the angles and their sines by libm (numpy's own
-# arctan2 differs from it in the last bit for about 2 % of these points).
+# arctan2 differs from it in the last bit for about 2 % of these points). Each by libm itself,
+# never by a numpy ufunc: numpy picks its float64 pow and arctan2 by the processor (SVML where
+# it finds AVX-512, X86_V4), so np.float_power gave other last bits on such a machine.
 
 
 def _lengths(v: np.ndarray) -> np.ndarray:
@@ -381,10 +383,7 @@ def _lengths(v: np.ndarray) -> np.ndarray:
     return np.sqrt((v[..., None, :] @ v[..., :, None])[..., 0, 0])
 
 
-def _square(x):
-    return np.float_power(x, 2)
-
-
+_square = np.vectorize(lambda x: math.pow(x, 2), otypes=[float])
 _atan2 = np.vectorize(math.atan2, otypes=[float])
 _cos = np.vectorize(math.cos, otypes=[float])
 _sin = np.vectorize(math.sin, otypes=[float])
