@@ -307,3 +307,21 @@ def test_a_result_is_a_python_control_time_response():
     assert response.output_labels == ["motor_speed_rad_s"]
     with pytest.raises(emasim.errors.InputError, match="no_such_column; the columns: t_s"):
         result.to_timeresponse(["no_such_column"])
+
+
+def test_label_given_twice_runs_both_sets_as_a_comparison(tmp_path):
+    """``--label PI --label SMC`` runs those two sets, in that order, each with its gains (it
+    ran SMC alone, silently); one set twice, or with ``--controller``, is one line."""
+    out = tmp_path / "two"
+    result = invoke(
+        "run", "speed-step", "-l", "SMC", "-l", "PI", "--set", SHORT, "--out", str(out), "--no-plot"
+    )
+    assert result.exit_code == 0, result.output
+    saved = tomllib.loads((out / "scenario.toml").read_text())
+    assert [entry["label"] for entry in saved["compare"]] == ["SMC", "PI"]
+    assert saved["compare"][0]["controllers"]["speed"] == compared_speed_set("SMC")
+    assert set(Comparison.load(out).results) == {"SMC", "PI"}
+    twice = invoke("run", "speed-step", "-l", "PI", "-l", "PI")
+    assert twice.exit_code == 2 and "--label: PI given twice" in twice.output, twice.output
+    with_loop = invoke("run", "speed-step", "-l", "PI", "-l", "SMC", "-c", "speed=smc")
+    assert with_loop.exit_code == 2 and "one --label" in with_loop.output, with_loop.output

@@ -309,3 +309,55 @@ def test_a_series_of_traces_tracks_a_rising_friction_with_its_intervals(tmp_path
     assert (out / "series.png").is_file() and len([p for p in out.iterdir() if p.is_dir()]) == 3
     twice = [str(tmp_path / "again") if a == str(out) else a for a in args[:-1]] + ["5000"]
     refused_in_one_line(twice, "each trace needs its own")
+
+
+@pytest.mark.parametrize(
+    "items",
+    [
+        ["plant.friction.coulomb_Nm,plant.friction.coulomb_Nm=*0.5:2"],
+        ["plant.friction.coulomb_Nm=0.1:1", "plant.friction.coulomb_Nm,plant.mass_kg=*0.5:2"],
+    ],
+)
+def test_a_path_fitted_twice_is_refused_even_inside_a_factor_group(items):
+    from emasim.identification.fit import parse_keys
+
+    with pytest.raises(InputError, match="plant.friction.coulomb_Nm given twice"):
+        parse_keys(items, [])
+
+
+def test_every_field_of_an_axis_has_an_upper_bound():
+    """A fit's range is checked against the field's bounds: a field without an upper one let
+    ``--fit mass_kg=1:1e300`` through (issue 50)."""
+    from pydantic import BaseModel
+
+    from emasim.scenarios.axis_scenario import AxisScenario
+
+    unbounded = []
+
+    def walk(model: type[BaseModel], prefix: str) -> None:
+        for name, field in model.model_fields.items():
+            annotation = field.annotation
+            if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+                walk(annotation, f"{prefix}{name}.")
+            elif annotation in (float, int) or annotation == (float | None):
+                bounds = [m for m in field.metadata if hasattr(m, "le") or hasattr(m, "lt")]
+                if not bounds:
+                    unbounded.append(prefix + name)
+
+    walk(AxisScenario, "")
+    assert unbounded == []
+
+
+def test_starts_are_bounded_as_runs_are(tmp_path):
+    """``identify --starts 100000`` never returned (issue 50)."""
+    path = synthetic_trace(tmp_path, SYMMETRIC, suffix=".parquet")
+    refused_in_one_line(
+        ["identify", "emps", "--data", str(path), "--starts", "100000"], "give 1 to 1000"
+    )
+
+
+def test_a_fit_range_beyond_the_fields_bound_is_refused(tmp_path):
+    path = synthetic_trace(tmp_path, SYMMETRIC, suffix=".parquet")
+    refused_in_one_line(
+        ["identify", "emps", "--data", str(path), "--fit", "plant.mass_kg=1:1e300"], "mass_kg"
+    )

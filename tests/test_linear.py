@@ -277,6 +277,12 @@ def test_the_open_loop_closes_into_the_closed_loop_and_has_margins(case):
         ("position-step", ["position=pid", "speed=pi"], [], {"gaps": "open"}, "gaps must be"),
         ("position-step", ["position=pid", "speed=pi"], [], {"kind": "x"}, "kind must be"),
         ("position-step", ["position=pid", "speed=pi"], [], {"at_s": 99.0}, "at_s must be"),
+        # issue 50: each of these was ignored, or raised a TypeError
+        ("position-step", ["position=pid", "speed=pi"], [], {"at_s": "1"}, "at_s must be a num"),
+        ("speed-step", ["speed=pi"], [], {"broken_at": "speed"}, "broken_at cuts the open"),
+        ("speed-step", ["speed=pi"], [], {"operating_speed_rpm": 1e9}, "from -3000 to 3000"),
+        ("speed-step", ["speed=pi"], [], {"operating_speed_rpm": "100"}, "must be a number"),
+        ("speed-step", ["speed=pi"], [], {"friction": "no"}, "friction must be True or False"),
         # the nominal bench carries no standing load: its linkage's hinges hang open at rest
         ("bench-step", ["position=pid", "speed=pi"], [], {}, "hinge . of the clearance-joint"),
         (
@@ -483,3 +489,8 @@ def test_a_plant_held_by_a_standing_load_is_the_simulations_loop(case):
         ratio = last_periods_response(result, columns, f, periods, duration) / h_model
         rows.append((f, 20 * math.log10(abs(ratio)), math.degrees(np.angle(ratio))))
     assert_within_tolerance(rows)
+
+
+def test_a_string_for_a_list_of_settings_is_refused_not_read_as_its_characters():
+    with pytest.raises(InputError, match=r"settings must be a list of strings, e\.g\. \['dur"):
+        linearize("speed-step", label="PI", settings="duration_s=1")

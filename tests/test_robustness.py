@@ -4,6 +4,7 @@ samples, and its statistics on tables with known answers."""
 import numpy as np
 import pandas as pd
 import pytest
+from helpers import refused_in_one_line
 from scipy.stats import beta
 
 from emasim.analysis.paper_report import robustness_lines
@@ -222,3 +223,9 @@ def test_the_wear_study_runs_the_bench_at_each_identified_row(tmp_path):
     assert all(np.isfinite(entry[label]).all() for label in ("PID", "hybrid"))
     with pytest.raises(InputError, match="no single non-zero number"):
         wear.series_variation({"plant.mass_kg": [80.0, 90.0]}, "bench-sine")
+
+
+def test_runs_without_robustness_is_refused():
+    """``reproduce --runs 20`` ran the reproduction and ignored the 20 (issue 50); --seed
+    alone chooses whose stored studies the report reads, so it stays."""
+    refused_in_one_line(["reproduce", "--runs", "20"], "--runs applies to --robustness")

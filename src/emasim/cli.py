@@ -400,8 +400,13 @@ def run(
         ),
     ] = None,
     label: Annotated[
-        str | None,
-        typer.Option("--label", "-l", help="run this controller set of the comparison alone"),
+        list[str] | None,
+        typer.Option(
+            "--label",
+            "-l",
+            help="run this controller set of the comparison alone (repeatable: those sets, "
+            "compared)",
+        ),
     ] = None,
     setting: Annotated[
         list[str] | None,
@@ -471,7 +476,7 @@ def run(
     reasons = {label: r.meta.get("undefined_metrics", {}) for label, r in runs.items()}
     _print_metrics(by_label, f"{sc.name}: metrics", reasons)
     _print_warnings(result)
-    if label or controller:
+    if (label and len(label) == 1) or controller:  # one set: whose gains it took
         origin = sc.tuning.get("gains_from")
         log.info(
             f"gains: those of the comparison's controller set {origin}"
@@ -768,6 +773,7 @@ def _print_summary(title: str, metrics: list[str], groups: dict, key: str | None
 
 @app.command()
 def reproduce(
+    ctx: typer.Context,
     out: Annotated[
         Path | None,
         typer.Option(
@@ -809,10 +815,14 @@ def reproduce(
     robustness of the headline verdicts, the wear and the verdict map are those of the last
     --robustness studies of these experiments, --seed and version, when they exist."""
     from .analysis.paper_report import EXPERIMENTS
+    from .errors import InputError
     from .experiments.reproduction import check_robustness
     from .experiments.reproduction import reproduce as run_all
     from .output import check_target
 
+    # the name, not click's enum: typer's own copy of click has its own
+    if not robustness and ctx.get_parameter_source("runs").name != "DEFAULT":
+        _fail(InputError("--runs applies to --robustness: add --robustness, or leave --runs out"))
     names = [e.scenario for e in EXPERIMENTS]
     unknown = [n for n in only or [] if n not in names]
     if unknown:

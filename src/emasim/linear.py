@@ -87,6 +87,7 @@ from pathlib import Path
 
 import control
 
+from .arguments import flag, number, strings
 from .config import RPM
 from .control import pid
 from .control.continuous import current_loop, pade_delay, pid_law, with_rates
@@ -167,12 +168,24 @@ def linearize(
     not continuous at the operating point.
     """
     named = not isinstance(scenario, Scenario)
-    scenario = as_scenario(scenario, label, list(controllers), list(settings), "linearize")
+    controllers = strings("linearize: controllers", controllers)
+    settings = strings("linearize: settings", settings)
+    friction = flag("linearize: friction", friction)
+    discrete = flag("linearize: discrete", discrete)
+    scenario = as_scenario(scenario, label, controllers, settings, "linearize")
     if named and scenario.compare:
         sets = ", ".join(entry.label for entry in scenario.compare)
         raise InputError(f"linearize: {scenario.name} compares {sets}: choose one with label=")
     _refuse(scenario, gaps, kind, at_s)
     _refuse_ports(scenario, kind, discrete, input, output)
+    max_rpm = scenario.plant.motor.max_speed_rpm
+    operating_speed_rpm = number("linearize: operating_speed_rpm", operating_speed_rpm,
+                                 -max_rpm, max_rpm)  # fmt: skip
+    if broken_at is not None and kind != "open":
+        raise InputError(
+            f"linearize: broken_at cuts the open loop; give kind='open' or leave it out "
+            f"(kind={kind!r})"
+        )
     if broken_at not in (None, "speed", "position") or (
         broken_at == "position" and scenario.controllers.position is None
     ):
@@ -284,10 +297,8 @@ def _refuse(scenario: Scenario, gaps: str, kind: str, at_s: float | None) -> Non
         raise InputError(f"linearize: gaps must be one of {', '.join(GAPS)}, got {gaps!r}")
     if kind not in KINDS:
         raise InputError(f"linearize: kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    if at_s is not None and not 0.0 <= at_s <= scenario.duration_s:
-        raise InputError(
-            f"linearize: at_s must be within the run, 0 to {scenario.duration_s:g} s, got {at_s}"
-        )
+    if at_s is not None:
+        number("linearize: at_s", at_s, 0.0, scenario.duration_s)
     c = scenario.controllers
     if not isinstance(c.speed, SpeedPI):
         raise InputError(

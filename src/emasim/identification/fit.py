@@ -65,7 +65,8 @@ def parse_keys(items: list[str], defaults: list[str]) -> list[Key]:
         key = _key(item, {}, "identify.fit")
         ranges[key.path] = key
     keys = [_key(item, ranges, "--fit") for item in items] if items else list(ranges.values())
-    twice = sorted({k.path for k in keys if [j.path for j in keys].count(k.path) > 1})
+    paths = [path for key in keys for path in key.paths]  # a factor group's each
+    twice = sorted({path for path in paths if paths.count(path) > 1})
     if twice:
         raise InputError(f"--fit: {', '.join(twice)} given twice")
     return keys
@@ -164,8 +165,10 @@ def output_error(
 
     points = [np.clip(start, low, high)]
     if starts > 1:
-        sobol = qmc.Sobol(len(keys), scramble=True, seed=seed).random(starts - 1)
-        points += list(qmc.scale(sobol, low, high))
+        # the first starts - 1 of a power of two of points: scipy warns on any other count
+        power = math.ceil(math.log2(starts - 1)) if starts > 2 else 0
+        sobol = qmc.Sobol(len(keys), scramble=True, seed=seed).random_base2(power)
+        points += list(qmc.scale(sobol[: starts - 1], low, high))
     best = None
     for point in points:
         result = least_squares(

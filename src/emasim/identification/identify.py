@@ -42,6 +42,7 @@ from .fit import Z95, Fit, Key, output_error, parse_keys
 from .idim import Estimate
 
 METHODS = ("output-error", "idim")
+MAX_STARTS = 1000  # each start is a whole fit, tens of simulations: 1000 take hours
 
 
 @dataclass(frozen=True)
@@ -198,8 +199,8 @@ def identify(
     ``label`` chooses a comparison's controller set. ``out``: the result folder (None: written
     nowhere; the command line writes runs/<scenario>/identify-<time> by default)."""
     started = time.perf_counter()
-    if starts < 1:
-        raise InputError(f"--starts {starts}: give at least 1")
+    if not 1 <= starts <= MAX_STARTS:
+        raise InputError(f"--starts {starts}: give 1 to {MAX_STARTS}")
     columns = parse_map(list(mapping))
     model, text = bind(scenario, data, settings, columns, label)
     defaults = model.scenario.identify

@@ -54,17 +54,19 @@ class AxisFriction(Strict):
     unset)."""
 
     model: Literal["coulomb", "asymmetric", "lugre"] = "coulomb"
-    coulomb_N: float = Field(ge=0.0)
-    viscous_Ns_per_m: float = Field(ge=0.0)
-    coulomb_negative_N: float | None = Field(default=None, ge=0.0)
-    viscous_negative_Ns_per_m: float | None = Field(default=None, ge=0.0)
-    offset_N: float = 0.0
+    # every number bounded as the actuator's are (emasim.plant.parameters): orders of
+    # magnitude beyond any positioning axis, so that a typo or a fit's range of 1e300 is refused
+    coulomb_N: float = Field(ge=0.0, le=1e5)
+    viscous_Ns_per_m: float = Field(ge=0.0, le=1e7)
+    coulomb_negative_N: float | None = Field(default=None, ge=0.0, le=1e5)
+    viscous_negative_Ns_per_m: float | None = Field(default=None, ge=0.0, le=1e7)
+    offset_N: float = Field(default=0.0, ge=-1e5, le=1e5)
     # tanh(v / v_s) for sign(v): 0.1 mm/s, below the 1 um/ms an encoder count per sample means
     smoothing_speed_m_s: float = Field(default=1e-4, gt=0.0, le=0.1)
-    static_N: float | None = Field(default=None, ge=0.0)  # LuGre: Fs
-    stribeck_speed_m_s: float = Field(default=1e-3, gt=0.0)  # LuGre: vs
-    bristle_stiffness_N_per_m: float = Field(default=1e6, gt=0.0)  # LuGre: sigma0
-    bristle_damping_Ns_per_m: float = Field(default=0.0, ge=0.0)  # LuGre: sigma1
+    static_N: float | None = Field(default=None, ge=0.0, le=1e5)  # LuGre: Fs
+    stribeck_speed_m_s: float = Field(default=1e-3, gt=0.0, le=10.0)  # LuGre: vs
+    bristle_stiffness_N_per_m: float = Field(default=1e6, gt=0.0, le=1e12)  # LuGre: sigma0
+    bristle_damping_Ns_per_m: float = Field(default=0.0, ge=0.0, le=1e9)  # LuGre: sigma1
 
     def negative(self) -> tuple[float, float]:
         """(Fc-, Fv-): the negative direction's, the positive's where the model is symmetric."""
@@ -81,10 +83,10 @@ class AxisFriction(Strict):
 class AxisParams(Strict):
     """A force-driven axis: mass, drive gain, stroke and friction (module docstring)."""
 
-    mass_kg: float = Field(gt=0.0)
-    drive_gain_N_per_V: float = Field(gt=0.0)
-    stroke_m: float = Field(gt=0.0)
-    max_speed_m_s: float = Field(gt=0.0)
+    mass_kg: float = Field(gt=0.0, le=1e4)  # bounds: see AxisFriction
+    drive_gain_N_per_V: float = Field(gt=0.0, le=1e5)
+    stroke_m: float = Field(gt=0.0, le=100.0)
+    max_speed_m_s: float = Field(gt=0.0, le=100.0)
     friction: AxisFriction
 
 

@@ -34,11 +34,12 @@ class AxisLoopConfig(Strict):
 
     sample_period_s: float = Field(gt=0.0, le=1.0)
     substeps: int = Field(ge=1, le=MAX_SUBSTEPS, description="RK4 sub-steps per sample")
-    encoder_resolution_m: float = Field(ge=0.0, description="0: an ideal reading")
-    kp_per_s: float = Field(gt=0.0)
-    kv_V_s_per_m: float = Field(gt=0.0)
-    command_limit_V: float = Field(gt=0.0)
-    computation_delay_s: float = Field(ge=0.0)
+    # bounded as the axis's numbers are (emasim.plant.axis.AxisFriction)
+    encoder_resolution_m: float = Field(ge=0.0, le=0.01, description="0: an ideal reading")
+    kp_per_s: float = Field(gt=0.0, le=1e5)
+    kv_V_s_per_m: float = Field(gt=0.0, le=1e7)
+    command_limit_V: float = Field(gt=0.0, le=1e4)
+    computation_delay_s: float = Field(ge=0.0, le=1.0)
 
     @model_validator(mode="after")
     def _delay_in_substeps(self):

@@ -177,11 +177,12 @@ def load_scenario(
     name_or_path: str,
     settings: list[str] = (),
     controllers: list[str] = (),
-    label: str | None = None,
+    label: str | list[str] | None = None,
 ) -> Scenario:
     """Read, override and validate a scenario; raise InputError naming the field on failure.
 
-    ``label`` runs that controller set of the comparison alone, with its gains; each of
+    ``label`` runs that controller set of the comparison alone, with its gains (a list of
+    several: those sets compared, in that order, each with its gains); each of
     ``controllers`` (``LOOP=NAME`` or a cascade) then replaces a loop, starting from the gains
     of the comparison's first set that uses it, else from the library's defaults. Either
     leaves a single run (no comparison); the set whose gains it took is recorded as
@@ -216,22 +217,25 @@ def as_scenario(
     return scenario
 
 
-def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> None:
+def choose_controllers(raw: dict, controllers: list[str], label: str | list[str] | None) -> None:
     """Apply ``label`` and ``controllers`` to a raw scenario table (see :func:`load_scenario`)."""
-    if label is None and not controllers:
+    labels = [label] if isinstance(label, str) else list(label or [])
+    label = labels[0] if len(labels) == 1 else None
+    if not labels and not controllers:
         return
     entries = raw.pop("compare", [])
     entries = entries if isinstance(entries, list) else []  # malformed: validation says so
     sets = {entry.get("label"): entry for entry in entries if isinstance(entry, dict)}
+    if len(labels) > 1:
+        raw["compare"] = _chosen_sets(sets, labels, controllers)
+        return
     if not isinstance(raw.get("tuning", {}), dict):
         raise InputError("tuning: must be a table of key = value records")
     if isinstance(raw.get("controllers"), str):  # controllers = "hybrid": a cascade's name
         raw["controllers"] = {"cascade": raw["controllers"]}
     origin = []
     if label is not None:
-        if label not in sets:
-            known = ", ".join(map(str, sets)) or "none: the scenario compares nothing"
-            raise InputError(f"--label: {label!r} is no controller set of it; choose from: {known}")
+        _check_label(sets, label)
         raw["controllers"] = copy.deepcopy(sets[label].get("controllers", {}))
         raw.setdefault("tuning", {})["controller_set"] = label
         origin.append(label)
@@ -252,6 +256,28 @@ def choose_controllers(raw: dict, controllers: list[str], label: str | None) -> 
         raw.setdefault("tuning", {})["gains_from"] = ", ".join(dict.fromkeys(origin))
     if label is not None and controllers:  # that set with its loops replaced: say so
         raw["tuning"]["controller_set"] = f"{label} ({', '.join(controllers)})"
+
+
+def _check_label(sets: dict, label: str) -> None:
+    """One InputError line where ``label`` names no set of the comparison ``sets``."""
+    if label not in sets:
+        known = ", ".join(map(str, sets)) or "none: the scenario compares nothing"
+        raise InputError(f"--label: {label!r} is no controller set of it; choose from: {known}")
+
+
+def _chosen_sets(sets: dict, labels: list[str], controllers: list[str]) -> list[dict]:
+    """The comparison's entries named by ``labels`` (several), in that order."""
+    if controllers:
+        raise InputError(
+            "--label given more than once with --controller: give one --label, whose loops "
+            "--controller replaces"
+        )
+    twice = sorted({label for label in labels if labels.count(label) > 1})
+    if twice:
+        raise InputError(f"--label: {twice[0]} given twice")
+    for label in labels:
+        _check_label(sets, label)
+    return [sets[label] for label in labels]
 
 
 def validate_scenario(raw: dict, source: str = "scenario") -> Scenario:
