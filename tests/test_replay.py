@@ -8,6 +8,7 @@ the full check, every scenario and set over 0.5 s, is benchmarks/bench_accuracy.
 stored table docs/model.md shows.
 """
 
+import functools
 import json
 import sys
 from dataclasses import replace
@@ -32,14 +33,24 @@ WINDOWS = {
 }
 
 
+@functools.cache
+def applied(name: str):
+    """(its first set's Setup, the applied inputs over the scenario's window), made once."""
+    setup = load_scenario(name).variants()[0][1].setup()
+    start, end = WINDOWS[name]
+    return setup, replay.applied_inputs(setup, end).window(start, end)
+
+
+@functools.cache
+def reference(name: str) -> np.ndarray:
+    """The scipy replay of the scenario's window, made once."""
+    return replay.replay_reference(applied(name)[1])
+
+
 @pytest.fixture(scope="module", params=sorted(WINDOWS))
 def window(request):
     """(scenario name, its first set's Setup, the applied inputs over the window)."""
-    name = request.param
-    setup = load_scenario(name).variants()[0][1].setup()
-    start, end = WINDOWS[name]
-    inputs = replay.applied_inputs(setup, end).window(start, end)
-    return name, setup, inputs
+    return request.param, *applied(request.param)
 
 
 def contact_changes(states: np.ndarray, p: np.ndarray, output: str) -> int:
@@ -64,9 +75,8 @@ def test_the_replay_at_the_shipped_count_is_the_closed_loop_run_bit_for_bit(wind
 
 def test_the_plant_keeps_the_contract_at_the_shipped_count_and_one_either_side(window):
     name, setup, inputs = window
-    reference = replay.replay_reference(inputs)
     for n in (setup.substeps - 1, setup.substeps, setup.substeps + 1):
-        errors = replay.contract_errors(inputs, reference, replay.replay_scheme(inputs, n))
+        errors = replay.contract_errors(inputs, reference(name), replay.replay_scheme(inputs, n))
         assert set(replay.SENSED) & set(errors), errors  # the sensed states moved
         assert replay.breaches(errors) == {}, (name, n, errors)
 
@@ -74,12 +84,10 @@ def test_the_plant_keeps_the_contract_at_the_shipped_count_and_one_either_side(w
 def test_the_contract_sees_a_voltage_a_tick_late():
     """The check can fail: bench-step's window replayed without the voltage acting at its
     start (0 V over the first tick's delay, a whole tick) breaks the bound on the currents."""
-    setup = load_scenario("bench-step").variants()[0][1].setup()
-    start, end = WINDOWS["bench-step"]
-    inputs = replay.applied_inputs(setup, end).window(start, end)
+    setup, inputs = applied("bench-step")
     late = replace(inputs, before=(0.0, 0.0))
-    reference = replay.replay_reference(inputs)
-    errors = replay.contract_errors(inputs, reference, replay.replay_scheme(late, setup.substeps))
+    replayed = replay.replay_scheme(late, setup.substeps)
+    errors = replay.contract_errors(inputs, reference("bench-step"), replayed)
     assert {"id_A", "iq_A"} <= set(replay.breaches(errors)), errors
 
 
