@@ -14,6 +14,7 @@ import emasim
 
 PACKAGE = Path(emasim.__file__).parent
 BASE = {
+    "arguments",
     "config",
     "errors",
     "interface",

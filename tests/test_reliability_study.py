@@ -252,6 +252,28 @@ def test_a_tuning_whose_store_another_holds_is_refused_in_one_line(tmp_path):
         assert _snapshot(tmp_path) == before
 
 
+def test_a_study_from_a_script_without_a_main_guard_says_what_to_add(tmp_path):
+    """A script that starts a study at its top level runs again in every Dask worker process
+    (Python imports it there as ``__mp_main__``): each worker's copy finds the study's lock
+    held and says what the script lacks, not that another emasim process runs it."""
+    script = tmp_path / "study.py"
+    script.write_text(
+        "from emasim.experiments.study import StudySpec, run_study\n"
+        "spec = StudySpec('speed-step', vary=('seed=1,2',), labels=('PI',),"
+        " settings=('duration_s=0.01',))\n"
+        f"run_study(spec, {str(tmp_path / 'out')!r}, workers=1)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=300
+    )
+    assert done.returncode != 0
+    assert 'put the lines that start it under `if __name__ == "__main__":`' in done.stderr
+    assert "another emasim process is running it" not in done.stderr
+    last = done.stderr.strip().splitlines()[-1]  # the script's own error names the guard too
+    assert last.startswith("emasim.errors.EmasimError: Dask could not start its worker")
+    assert '`if __name__ == "__main__":`' in last
+
+
 def _snapshot(root):
     return {p: p.read_bytes() if p.is_file() else None for p in sorted(root.rglob("*"))}
 

@@ -17,7 +17,11 @@ def number(name: str, value, low: float = -math.inf, high: float = math.inf) -> 
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InputError(f"{name} must be a number, got {value!r}")
     if not (math.isfinite(value) and low <= value <= high):
-        raise InputError(f"{name} must be a finite number from {low:g} to {high:g}, got {value!r}")
+        if math.isfinite(high):
+            span = f" from {low:g} to {high:g}"
+        else:
+            span = f" of at least {low:g}" if math.isfinite(low) else ""
+        raise InputError(f"{name} must be a finite number{span}, got {value!r}")
     return float(value)
 
 
@@ -36,3 +40,69 @@ def strings(name: str, value) -> list[str]:
     if not all(isinstance(item, str) for item in value):
         raise InputError(f"{name} must be a list of strings, got {value!r}")
     return list(value)
+
+
+def positive(name: str, value, high: float = math.inf) -> float:
+    """``value`` as a float: a real number, finite, above 0 and at most ``high``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InputError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(value) and 0 < value <= high):
+        most = f" and at most {high:g}" if math.isfinite(high) else ""
+        raise InputError(f"{name} must be a finite number above 0{most}, got {value!r}")
+    return float(value)
+
+
+def integer(name: str, value, low: int, high: float = math.inf) -> int:
+    """``value``, a whole number (an int, not a bool nor a float) from ``low`` to ``high``."""
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        most = f"from {low} to {high:g}" if math.isfinite(high) else f"of at least {low}"
+        raise InputError(f"{name} must be a whole number {most}, got {value!r}")
+    return value
+
+
+def positive_numbers(name: str, value) -> tuple[float, ...]:
+    """``value`` as a tuple of floats: a non-empty list or tuple of finite numbers above 0."""
+    if (
+        isinstance(value, str)
+        or not isinstance(value, Sequence)
+        or not value
+        or not all(
+            not isinstance(item, bool)
+            and isinstance(item, int | float)
+            and math.isfinite(item)
+            and item > 0
+            for item in value
+        )
+    ):
+        raise InputError(
+            f"{name} must be a non-empty list of finite numbers above 0, got {value!r}"
+        )
+    return tuple(float(item) for item in value)
+
+
+def choice(name: str, value, allowed) -> str:
+    """``value``, one of the strings ``allowed`` (anything else, a list included, refused)."""
+    if not isinstance(value, str) or value not in allowed:
+        raise InputError(f"{name} must be one of {', '.join(allowed)}, got {value!r}")
+    return value
+
+
+def optional_string(name: str, value) -> str | None:
+    """``value``, a string or None."""
+    if value is not None and not isinstance(value, str):
+        raise InputError(f"{name} must be a string or None, got {value!r}")
+    return value
+
+
+def function_or_none(name: str, value, what: str = "a function"):
+    """``value``, a callable or None."""
+    if value is not None and not callable(value):
+        raise InputError(f"{name} must be {what} or None, got {value!r}")
+    return value
+
+
+def client_or_none(name: str, value):
+    """``value``, a Dask client (anything with a ``submit`` method) or None."""
+    if value is not None and not callable(getattr(value, "submit", None)):
+        raise InputError(f"{name} must be a dask.distributed.Client or None, got {value!r}")
+    return value

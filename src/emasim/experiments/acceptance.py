@@ -66,13 +66,26 @@ from typing import TYPE_CHECKING
 
 import control
 import numpy as np
+from pydantic import ValidationError
 
 from ..analysis import frequency as fr
 from ..analysis.metrics import rise_time
+from ..arguments import (
+    choice,
+    client_or_none,
+    flag,
+    function_or_none,
+    integer,
+    number,
+    positive,
+    positive_numbers,
+    strings,
+)
 from ..errors import InputError
 from ..jsonio import json_text
 from ..linear import linearize
 from ..naming import RUNS_ROOT, slug
+from ..scenarios.loader import describe_errors
 from ..scenarios.schema import Scenario, rudder_rod_grid
 from ..sim.engine import EngineRun, simulate
 from .batch import Job
@@ -106,6 +119,31 @@ OUTPUTS = {  # what every response is read on, and the linear model's reading of
 }
 
 
+HALF_STROKE = 0.5  # a command's amplitude, as a fraction of the full stroke, about mid stroke
+BATTERY_RANGES = {  # Battery's numeric settings: (check, its bounds) (emasim.arguments)
+    "small_amplitude": (positive, HALF_STROKE),
+    "large_amplitude": (positive, HALF_STROKE),
+    "frequencies_Hz": (positive_numbers,),
+    "settle_s": (positive,),
+    "settle_cycles": (integer, 0),
+    "measure_cycles": (integer, 1),
+    "measure_min_s": (number, 0.0),
+    "triangle_amplitude": (positive, HALF_STROKE),
+    "triangle_period_s": (positive,),
+    "triangle_cycles": (integer, 2),  # the hysteresis reads a whole rising and falling sweep
+    "detection_mm": (positive,),
+    "load_step": (positive, 1.0),  # of the theoretical stall force
+    "load_hold_s": (positive,),
+    "dynamic_force": (positive, 1.0),
+    "stiffness_frequencies_Hz": (positive_numbers,),
+    "rate_step_fraction": (positive, HALF_STROKE),
+    "stall_ramp_per_s": (positive,),
+    "stall_deflection_mm": (positive,),
+    "cycle_frequency_Hz": (positive,),
+    "chirp_s": (positive,),
+}
+
+
 @dataclass(frozen=True)
 class Battery:
     """The battery's settings (amplitudes as fractions of the full stroke, forces of the
@@ -135,12 +173,14 @@ class Battery:
     chirp_s: float = 30.0
 
     def __post_init__(self):
-        if self.excitation not in EXCITATIONS:
-            raise InputError(
-                f"excitation must be one of {', '.join(EXCITATIONS)}, got {self.excitation!r}"
-            )
-        if not self.chirp_s > 0:
-            raise InputError(f"chirp_s must be > 0 s, got {self.chirp_s}")
+        """Every setting checked here, at construction: InputError, one line naming it and
+        its range (BATTERY_RANGES); numbers kept as floats, frequency lists as tuples. What
+        depends on the scenario (the frequencies below its recording's Nyquist frequency) is
+        checked by :func:`check_acceptance`."""
+        # the command line's message, kept: ``emasim acceptance --excitation`` reads it
+        choice("excitation", self.excitation, EXCITATIONS)
+        for name, (check, *bounds) in BATTERY_RANGES.items():
+            object.__setattr__(self, name, check(f"Battery: {name}", getattr(self, name), *bounds))
 
     @property
     def band_Hz(self) -> tuple[float, float]:
@@ -240,7 +280,13 @@ def battery_scenario(
     raw["solver"]["record_signals"] = list(RECORDED)
     if no_standing_load and raw["plant"].get("load_motor"):
         raw["plant"]["load_motor"]["preload_Nm"] = 0.0
-    return Scenario.model_validate(raw)
+    try:
+        return Scenario.model_validate(raw)
+    except ValidationError as err:  # a Battery whose run this plant cannot take: one line
+        lines = "; ".join(describe_errors(err))
+        raise InputError(
+            f"Battery: these settings make a run {base.name} refuses: {lines}"
+        ) from None
 
 
 def sine_job(base, drive, battery, frequency_Hz, amplitude_m, force_N=0.0):
@@ -649,12 +695,14 @@ class Acceptance:
         """
         choices = (("label", label, self.curves), ("input", input, INPUTS))
         for what, value, allowed in (*choices, ("output", output, OUTPUTS)):
-            if value not in allowed:
-                raise InputError(f"{what} must be one of {', '.join(allowed)}, got {value!r}")
+            choice(f"frequency_response: {what}", value, allowed)
         sizes = ("small", "large") if input == "position_command" else ()
-        if amplitude is not None and amplitude not in sizes:
+        if amplitude is not None and (not isinstance(amplitude, str) or amplitude not in sizes):
             allowed = f"one of {', '.join(sizes)}" if sizes else "None (the rod force has one)"
-            raise InputError(f"amplitude for {input} must be {allowed}, got {amplitude!r}")
+            raise InputError(
+                f"frequency_response: amplitude for {input} must be {allowed}, got {amplitude!r}"
+            )
+        linear = flag("frequency_response: linear", linear)
         responses = self.curves[label]["responses"]
         if linear and not any(r.source == "linear model" for r in responses):
             raise InputError(f"{label} has no linear model: {self.meta['linear_model'][label]}")
@@ -740,11 +788,14 @@ def plan_battery(variant: Scenario, battery: Battery) -> list[tuple[tuple, Job]]
     return jobs
 
 
-def check_acceptance(scenario: Scenario, labels: list[str] | None = None) -> None:
+def check_acceptance(
+    scenario: Scenario, labels: list[str] | None = None, battery: "Battery | None" = None
+) -> None:
     """Every rule of the battery on ``scenario``, checked before anything is compiled or run;
     InputError names the first. The battery runs the coupled plant in the compiled loop and
     records what it reads: a co-simulation (``solver.communication_step_s``, an FMU mechanism)
-    and ``solver.record_signals`` are refused, not ignored."""
+    and ``solver.record_signals`` are refused, not ignored. With ``battery``, its frequencies
+    must lie below the Nyquist frequency of each set's recording (:func:`check_nyquist`)."""
     solver = scenario.solver
     if solver.mechanism_fmu is not None:
         raise InputError(
@@ -773,6 +824,29 @@ def check_acceptance(scenario: Scenario, labels: list[str] | None = None) -> Non
             f"--label: {unknown[0]!r} is no controller set of {scenario.name}; "
             f"choose from: {', '.join(variants)}"
         )
+    if battery is not None:
+        for label in labels or variants:
+            check_nyquist(variants[label], battery)
+
+
+def check_nyquist(variant: Scenario, battery: "Battery") -> None:
+    """InputError, one line, where a frequency the battery reads (a chirp: its band, up to
+    CHIRP_MARGIN beyond them) is not below the Nyquist frequency of ``variant``'s recording,
+    the battery's samples (solver.record_period_s, never shorter than the control period)."""
+    period = variant.solver.record_period_s
+    nyquist = 0.5 / period
+    swept = battery.excitation == "chirp"
+    for name in ("frequencies_Hz", "stiffness_frequencies_Hz", "cycle_frequency_Hz"):
+        value = getattr(battery, name)
+        highest = max(value) if isinstance(value, tuple) else value
+        margin = CHIRP_MARGIN if swept and isinstance(value, tuple) else 1.0
+        if highest * margin >= nyquist:
+            beyond = f", and the chirp sweeps {margin:.3g} times higher" if margin > 1 else ""
+            raise InputError(
+                f"Battery: {name} reaches {highest:g} Hz{beyond}: give frequencies below "
+                f"{nyquist / margin:.4g} Hz, as {variant.name} records every {period:g} s "
+                f"(solver.record_period_s: its Nyquist frequency is {nyquist:g} Hz)"
+            )
 
 
 def battery_store(scenario: Scenario, chosen: list[str], battery: "Battery"):
@@ -799,9 +873,19 @@ def run_acceptance(
 ) -> Acceptance:
     """Run the battery for each controller set of ``scenario`` (or those named in ``labels``)
     in parallel on its job store (:func:`battery_store`); ``progress(done, total)`` after
-    each run."""
+    each run. Every argument is checked first (InputError, one line naming it)."""
+    if not isinstance(scenario, Scenario):
+        raise InputError(
+            f"run_acceptance: scenario must be a Scenario (emasim.scenarios.loader."
+            f"load_scenario), got {scenario!r}"
+        )
+    labels = None if labels is None else strings("run_acceptance: labels", labels)
+    if battery is not None and not isinstance(battery, Battery):
+        raise InputError(f"run_acceptance: battery must be a Battery or None, got {battery!r}")
+    client_or_none("run_acceptance: client", client)
+    function_or_none("run_acceptance: progress", progress, "a function (done, total)")
     battery = battery or Battery()
-    check_acceptance(scenario, labels)
+    check_acceptance(scenario, labels, battery)
     variants = dict(scenario.variants())
     chosen = list(labels or variants)
     store = battery_store(scenario, chosen, battery)

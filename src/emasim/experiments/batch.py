@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import InputError
+from ..errors import EmasimError, InputError
 from ..sim.cosim import check_fmu_trust
 from ..sim.engine import load_compiled as load_engine
 from ..sim.result import Comparison, Result
@@ -79,13 +79,20 @@ def dask_client(
             yield client
         return
     n = workers or workers_available()
-    cluster = LocalCluster(
-        processes=processes,
-        n_workers=n if processes else 1,
-        threads_per_worker=1 if processes else n,
-        dashboard_address=":0",  # a free port: None still binds 8787, and warns if taken
-        silence_logs=logging.ERROR,
-    )
+    try:
+        cluster = LocalCluster(
+            processes=processes,
+            n_workers=n if processes else 1,
+            threads_per_worker=1 if processes else n,
+            dashboard_address=":0",  # a free port: None still binds 8787, and warns if taken
+            silence_logs=logging.ERROR,
+        )
+    except RuntimeError as err:  # a worker process that died while it started
+        raise EmasimError(
+            f"Dask could not start its worker processes ({err}); a worker's own message is "
+            "above. From a script: the lines that start the runs belong under "
+            '`if __name__ == "__main__":`, as every worker process runs the script again'
+        ) from None
     with cluster, Client(cluster) as client:
         log.debug(
             f"Dask: a local cluster of {n} {'processes' if processes else 'threads'}, "
@@ -306,8 +313,12 @@ def run(
     file's path, read with ``label``, ``controllers`` and ``settings`` as ``emasim run`` reads
     ``--label``, ``--controller`` and ``--set`` (:func:`emasim.scenarios.loader.load_scenario`:
     ``label`` picks one set). Both results have ``metrics``, ``plot()`` and ``save()``."""
+    from ..arguments import client_or_none, flag, function_or_none
     from ..scenarios.loader import as_scenario
 
+    trust_fmu = flag("emasim.run: trust_fmu", trust_fmu)
+    function_or_none("emasim.run: progress", progress)
+    client_or_none("emasim.run: client", client)
     scenario = as_scenario(scenario, label, controllers, settings)
     if scenario.compare:
         return run_comparison(scenario, progress, trust_fmu, client)

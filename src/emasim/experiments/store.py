@@ -40,6 +40,7 @@ import io
 import json
 import logging
 import os
+import sys
 import time
 import traceback
 from collections.abc import Callable, Sequence
@@ -90,6 +91,21 @@ def digest(jobs: Sequence[Job]) -> str:
         sha.update(json.dumps(job.scenario.model_dump(mode="json"), sort_keys=True).encode())
     sha.update(__version__.encode())
     return sha.hexdigest()
+
+
+def _held_by() -> str:
+    """Why a store's lock is held. In a process that imported the starting script again as
+    ``__mp_main__`` (a Dask worker process, as Python's multiprocessing starts one), it is that
+    script's own run: a script without a ``__main__`` guard starts the study again in every
+    worker."""
+    again = sys.modules.get("__mp_main__")  # runpy holds the script there while it runs it
+    if again is not None and again is not sys.modules.get("__main__"):
+        return (
+            "a worker process this study started is running your script again: put the "
+            'lines that start it under `if __name__ == "__main__":` (Python runs a script '
+            "again in each process it starts)"
+        )
+    return "another emasim process is running it"
 
 
 @dataclass
@@ -159,7 +175,7 @@ class Store:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                raise OutputError(f"{self.name}: another emasim process is running it") from None
+                raise OutputError(f"{self.name}: {_held_by()}") from None
             yield
         finally:
             os.close(fd)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..arguments import flag, optional_string, strings
 from ..errors import InputError
 from ..jsonio import json_text
 from ..naming import RUNS_ROOT, fresh_folder, slug
@@ -179,6 +180,28 @@ def bind(scenario: str, data, settings=(), columns=None, label: str | None = Non
     return BenchModel(raw, source, data, columns), read_scenario_text(str(scenario))[0]
 
 
+def _check_arguments(scenario, data, fit, mapping, method, settings, validate, starts, out, label):
+    """identify's arguments of the wrong type: InputError, one line naming the argument (the
+    command line passes each as it should; its own messages for values follow)."""
+    for name, value in (("scenario", scenario), ("data", data)):
+        if not isinstance(value, str | Path):
+            raise InputError(f"identify: {name} must be a string or a Path, got {value!r}")
+    for name, value in (("fit", fit), ("mapping", mapping), ("settings", settings)):
+        strings(f"identify: {name}", value)
+    if not isinstance(validate, list | tuple) or not all(
+        isinstance(path, str | Path) for path in validate
+    ):
+        raise InputError(f"identify: validate must be a list of paths, got {validate!r}")
+    optional_string("identify: method", method)
+    optional_string("identify: label", label)
+    if isinstance(starts, bool) or not isinstance(starts, int):
+        raise InputError(
+            f"identify: starts must be a whole number from 1 to {MAX_STARTS}, got {starts!r}"
+        )
+    if out is not None and not isinstance(out, str | Path):
+        raise InputError(f"identify: out must be a folder's path or None, got {out!r}")
+
+
 def identify(
     scenario: str,
     data: str | Path,
@@ -199,6 +222,8 @@ def identify(
     ``label`` chooses a comparison's controller set. ``out``: the result folder (None: written
     nowhere; the command line writes runs/<scenario>/identify-<time> by default)."""
     started = time.perf_counter()
+    _check_arguments(scenario, data, fit, mapping, method, settings, validate, starts, out, label)
+    force = flag("identify: force", force)
     if not 1 <= starts <= MAX_STARTS:
         raise InputError(f"--starts {starts}: give 1 to {MAX_STARTS}")
     columns = parse_map(list(mapping))

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
+from ..arguments import optional_string, strings
 from ..control.registry import CASCADES, CONTROLLERS
 from ..errors import InputError
 from ..signals import TERM_TYPES
@@ -206,7 +207,16 @@ def as_scenario(
     """``scenario`` itself, or the shipped scenario of that name or the TOML file at that path
     read with ``label``, ``controllers`` and ``settings`` as the command line reads
     ``--label``, ``--controller`` and ``--set`` (:func:`load_scenario`). InputError, naming
-    ``caller``, for those given with a Scenario: it is read already."""
+    ``caller``, for those given with a Scenario: it is read already, and for an argument of
+    the wrong type."""
+    label = optional_string(f"{caller}: label", label)
+    controllers = strings(f"{caller}: controllers", controllers)
+    settings = strings(f"{caller}: settings", settings)
+    if not isinstance(scenario, Scenario | str | Path):
+        raise InputError(
+            f"{caller}: scenario must be a Scenario, a shipped scenario's name or a TOML "
+            f"file's path, got {scenario!r}"
+        )
     if isinstance(scenario, str | Path):
         return load_scenario(str(scenario), list(settings), list(controllers), label)
     if label is not None or controllers or settings:
