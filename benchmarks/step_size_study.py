@@ -15,9 +15,9 @@ the set at STEPS and prints:
 - the largest relative change of any metric from the shipped step's run;
 - the figures the paper's headline judges (HEADLINE), whose verdicts a step must not flip.
 
-Nothing is written. It is a study, not a benchmark: CI does not run it. ``emasim reproduce``
-runs the part of it that judges: every headline figure at half and twice the shipped step
-(emasim.experiments.integration_step, docs/paper.md's "The integration step").
+Nothing is written. It is a study, not a benchmark: CI does not run it. What judges a step is
+the accuracy contract (docs/model.md): the plant replay (benchmarks/bench_accuracy.py) and the
+figures' distributions over paired replicas (benchmarks/bench_equivalence.py).
 """
 
 import numpy as np

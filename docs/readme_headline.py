@@ -1,48 +1,56 @@
-"""The headline tables of the README and of docs/paper.md, rendered from
-``docs/headline.json``, ``docs/integration_step.json``, ``docs/robustness.json`` and
-``docs/verdict_map.json``: the abstract's five figures, the paper's beside ours, and each at half
-and twice the integration step, as ``emasim reproduce`` measured them, their robustness over the
-plant uncertainty and where each verdict flips, as ``emasim reproduce --robustness`` measured
-them.
+"""The headline tables of the README and of docs/paper.md, rendered from ``docs/claims.json``,
+``docs/run_length.json``, ``docs/headline.json``, ``docs/robustness.json`` and
+``docs/verdict_map.json``: the abstract's five claims decided over paired replicas, the step
+test's length, and the five figures' single runs (the paper's beside ours), as ``emasim
+reproduce`` measured them, their robustness over the plant uncertainty and where each verdict
+flips, as ``emasim reproduce --robustness`` measured them.
 
-    python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's headline
-                                                   # and integration step (and robustness and
-                                                   # verdict map, when it has them) in docs/,
-                                                   # rewrite the pages
+    python docs/readme_headline.py REPORT_FOLDER   # store REPORT_FOLDER/tables.json's claims,
+                                                   # run length and headline (and robustness
+                                                   # and verdict map, when it has them) in
+                                                   # docs/, rewrite the pages
     python docs/readme_headline.py                 # rewrite the pages from docs/
 
-The README and docs/paper.md hold the headline table between ``<!-- headline:begin -->`` and
-``<!-- headline:end -->``; docs/paper.md holds the robustness table between ``<!--
-robustness:begin -->`` and ``<!-- robustness:end -->``, the integration step's table between
-``<!-- integration-step:begin -->`` and ``<!-- integration-step:end -->``, and the verdict
-map's lines between ``<!-- verdict-map:begin -->`` and ``<!-- verdict-map:end -->``
-(:data:`PAGES`). ``tests/test_reproduce.py`` checks that the blocks equal :func:`render`,
-:func:`render_robustness`, :func:`render_integration_step` and :func:`render_verdict_map` of
-the stored objects, that a fresh reproduction measures the stored headline, integration step
-and the stored map's nominal cells, and that its verdicts agree with the stored robustness;
-``tests/test_verdict_map.py`` re-runs one cell of the stored map off the nominal bench.
-The blocks follow emasim.page_blocks' rule; the lines of the map and of the integration step
-are emasim.analysis.verdict_map's and emasim.analysis.integration_step's.
+The README, docs/paper.md and docs/verdicts.md hold the claims between ``<!-- claims:begin
+-->`` and ``<!-- claims:end -->``; docs/verdicts.md the step test's length between ``<!--
+run-length:begin -->`` and ``<!-- run-length:end -->``; the README and docs/paper.md the
+headline table between ``<!-- headline:begin -->`` and ``<!-- headline:end -->``;
+docs/paper.md the robustness table between ``<!-- robustness:begin -->`` and ``<!--
+robustness:end -->`` and the verdict map's lines between ``<!-- verdict-map:begin -->`` and
+``<!-- verdict-map:end -->`` (:data:`PAGES`). ``tests/test_reproduce.py`` checks that the
+blocks equal :func:`render`, :func:`render_robustness` and :func:`render_verdict_map` of the
+stored objects, that a fresh reproduction measures the stored headline and the stored map's
+nominal cells, and that its verdicts agree with the stored robustness;
+``tests/test_replicas.py`` that the claims' and the run length's blocks equal
+:func:`render_claims` and :func:`render_run_length` of their stored objects and that every
+stored word follows from its interval, band and floor; ``tests/test_verdict_map.py`` re-runs
+one cell of the stored map off the nominal bench. The blocks follow emasim.page_blocks' rule;
+the lines of the claims and of the map are emasim.analysis.claims' and
+emasim.analysis.verdict_map's.
 """
 
 import json
 import sys
 from pathlib import Path
 
+from emasim.analysis.verdict_rule import MAX_PERCENT
 from emasim.page_blocks import write_block
 
 ROOT = Path(__file__).resolve().parents[1]
 STORE = ROOT / "docs" / "headline.json"
 ROBUSTNESS = ROOT / "docs" / "robustness.json"
 VERDICT_MAP = ROOT / "docs" / "verdict_map.json"
-INTEGRATION_STEP = ROOT / "docs" / "integration_step.json"
+CLAIMS = ROOT / "docs" / "claims.json"
+RUN_LENGTH = ROOT / "docs" / "run_length.json"
 README = ROOT / "README.md"
 PAPER = ROOT / "docs" / "paper.md"
+VERDICTS = ROOT / "docs" / "verdicts.md"
 PAGES = {
+    "claims": (README, PAPER, VERDICTS),
+    "run-length": (VERDICTS,),
     "headline": (README, PAPER),
     "robustness": (PAPER,),
     "verdict-map": (PAPER,),
-    "integration-step": (PAPER,),
 }
 NAMES = {  # headline key -> the tables' wording
     "step_steady_error_reduction": "step steady-state error (RMS)",
@@ -70,11 +78,14 @@ INDUSTRIAL = "industrial PID"  # the further PID variant of every bench experime
 
 
 def pair(before: float | None, after: float | None, unit: str, change: float | None) -> str:
-    """'0.056 → 0.032 deg (−43 %)'; '-' when a side is missing."""
+    """'0.056 → 0.032 deg (−43 %)'; '-' when a side is missing; no percentage beyond
+    ±MAX_PERCENT (emasim.analysis.verdict_rule: it says only that the baseline is near 0)."""
     if before is None or after is None:
         return "-"
     text = f"{number(before)} → {number(after)} {unit}"
-    return text + (f" ({percent(change)})" if change is not None else "")
+    if change is None or abs(100 * change) > MAX_PERCENT:
+        return text
+    return text + f" ({percent(change)})"
 
 
 def win_rate(verdict: dict | None) -> str:
@@ -102,14 +113,12 @@ def render(
     headline: dict,
     verdicts: dict | None = None,
     vmap: dict | None = None,
-    steps: dict | None = None,
 ) -> str:
     """The table of the headline object of tables.json: the paper's figures, ours as
     the bench measures them against both PID variants, the true angle's beside them and, with
     a robustness study (``verdicts``), the hybrid's win rate against each variant, and with a
-    verdict map (``vmap``) the cells of it the hybrid wins against each; then
-    :func:`verdict_line`, which names the verdicts that turn with the integration step
-    (``steps``, tables.json's integration_step object)."""
+    verdict map (``vmap``) the cells of it the hybrid wins against each. Single runs, one
+    replica each: the verdicts are the claims' (:func:`render_claims`)."""
     lines = [
         "| headline figure (abstract) | paper: PID → hybrid | ours, measured: PID → hybrid "
         f"| ours, measured: {INDUSTRIAL} → hybrid | true angle: PID → hybrid "
@@ -134,75 +143,7 @@ def render(
         rates = f"{win_rate(against.get('PID'))} / {win_rate(against.get(INDUSTRIAL))}"
         cells = map_wins(vmap, key)
         lines.append(f"| {words} | {paper}) | {ours} | {industrial} | {true} | {rates} | {cells} |")
-    return "\n".join([*lines, "", verdict_line(headline, verdicts, steps)])
-
-
-def wins_against(headline: dict, label: str) -> list[str]:
-    """The figures on which the hybrid, as measured on the nominal bench, is below ``label``
-    ('PID' or a variant's label)."""
-    out = []
-    for key, words in NAMES.items():
-        h = headline[key]
-        if label == "PID":
-            better = h["hybrid_better"]
-        else:
-            variant = h.get("variants", {}).get(label)
-            better = variant is not None and abs(h["ours_hybrid"]) < abs(variant["value"])
-        if better:
-            out.append(words)
-    return out
-
-
-def settled(verdicts: dict | None, label: str) -> bool:
-    """True when, on all five figures, the win rate's interval against ``label`` lies above
-    one half."""
-    if not verdicts:
-        return False
-    for key in NAMES:
-        verdict = verdicts.get(key, {}).get("against", {}).get(label)
-        if not verdict or not verdict.get("runs") or verdict["win_rate_ci95"][0] <= 0.5:
-            return False
-    return True
-
-
-def turning(steps: dict | None, label: str) -> list[str]:
-    """The figures whose verdict against ``label`` turns with the integration step
-    (emasim.analysis.integration_step), in the headline's order."""
-    from emasim.analysis.integration_step import TURNS, verdict
-
-    return [
-        words
-        for key, words in NAMES.items()
-        if key in (steps or {})
-        and label in steps[key]["values"]
-        and verdict(steps[key], label) == TURNS
-    ]
-
-
-def verdict_line(headline: dict, verdicts: dict | None = None, steps: dict | None = None) -> str:
-    """Which figures the hybrid wins on the nominal bench, as measured, against each PID
-    variant ('all five' only where the Monte Carlo settles all five for it too and none turns
-    with the integration step); then, given ``steps``, the verdicts that turn with it."""
-    parts, unsettled = [], []
-    for label in ("PID", INDUSTRIAL):
-        wins = wins_against(headline, label)
-        turned = turning(steps, label)
-        if turned:
-            unsettled.append(f"against {'the ' if label == INDUSTRIAL else ''}{label} on "
-                             f"{' and '.join(turned)}")  # fmt: skip
-        if len(wins) == len(NAMES) and settled(verdicts, label) and not turned:
-            parts.append(f"{label} on all five figures, on the nominal bench and over the plants")
-        elif not wins:
-            parts.append(f"{label} on none of the five figures")
-        else:
-            parts.append(f"{label} on {len(wins)} of the five ({', '.join(wins)})")
-    line = "As measured on the nominal bench, the hybrid beats " + "; and the ".join(parts) + "."
-    if unsettled:
-        line += (
-            " The verdicts " + " and ".join(unsettled) + " turn at half or twice the integration "
-            "step: the simulation does not settle them."
-        )
-    return line
+    return "\n".join(lines)
 
 
 def signed(x: float | None) -> str:
@@ -272,18 +213,28 @@ def render_verdict_map(vmap: dict) -> str:
     return "\n".join(f"- {line}" for line in flip_lines(vmap))
 
 
-def render_integration_step(steps: dict) -> str:
-    """The integration step's table and lines (emasim.analysis.integration_step.body)."""
-    from emasim.analysis.integration_step import body
+def render_claims(claims: dict) -> str:
+    """The abstract's claims decided over paired replicas (tables.json's claims object):
+    emasim.analysis.claims.summary_table."""
+    from emasim.analysis.claims import summary_table
 
-    return body(steps)
+    return "\n".join(summary_table(claims))
 
 
-def write_pages(headline: dict, verdicts: dict, vmap: dict, steps: dict) -> None:
+def render_run_length(table: dict) -> str:
+    """The step test's length (tables.json's run_length object):
+    emasim.analysis.claims.length_body."""
+    from emasim.analysis.claims import length_body
+
+    return "\n".join(length_body(table))
+
+
+def write_pages(headline: dict, verdicts: dict, vmap: dict, claims: dict, run_length: dict) -> None:
     """Rewrite each block on each of its :data:`PAGES`."""
     blocks = {
-        "headline": render(headline, verdicts, vmap, steps),
-        "integration-step": render_integration_step(steps),
+        "claims": render_claims(claims),
+        "run-length": render_run_length(run_length),
+        "headline": render(headline, verdicts, vmap),
         "robustness": render_robustness(verdicts, headline),
         "verdict-map": render_verdict_map(vmap),
     }
@@ -296,16 +247,20 @@ def main() -> None:
     if len(sys.argv) > 1:
         tables = json.loads((Path(sys.argv[1]) / "tables.json").read_text())
         STORE.write_text(json.dumps(tables["headline"], indent=1) + "\n")
-        INTEGRATION_STEP.write_text(json.dumps(tables["integration_step"], indent=1) + "\n")
         if "robustness" in tables:
             ROBUSTNESS.write_text(json.dumps(tables["robustness"], indent=1) + "\n")
         if "verdict_map" in tables:
             VERDICT_MAP.write_text(json.dumps(tables["verdict_map"], indent=1) + "\n")
+        if "claims" in tables:
+            CLAIMS.write_text(json.dumps(tables["claims"], indent=1) + "\n")
+        if "run_length" in tables:
+            RUN_LENGTH.write_text(json.dumps(tables["run_length"], indent=1) + "\n")
     write_pages(
         json.loads(STORE.read_text()),
         json.loads(ROBUSTNESS.read_text()),
         json.loads(VERDICT_MAP.read_text()),
-        json.loads(INTEGRATION_STEP.read_text()),
+        json.loads(CLAIMS.read_text()),
+        json.loads(RUN_LENGTH.read_text()),
     )
 
 

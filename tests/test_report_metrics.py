@@ -401,17 +401,18 @@ FLUCT_DEG_S = 0.3
 
 def bench_step_result(linkage=False, run=10.0):
     """Rudder step to 4.72 deg, first order; from the steady window on a 5 Hz cosine on the
-    angle and, independently, on the rate, each with its crest at the window's middle."""
+    angle and, independently, on the rate, each with its crest at the middle of the window
+    its figures read (the rate's: the steady window less its one-sided end, r.centred)."""
     t = grid(run, 1e-3)
     start, end = r.steady_window(t[-1])
-    mid = 0.5 * (start + end)
     in_window = t >= start
-    phase = 2 * np.pi * CHATTER_HZ * (t - mid)
+    phase = 2 * np.pi * CHATTER_HZ * (t - 0.5 * (start + end))
     angle = 4.72 * (1 - np.exp(-t / BENCH_TAU)) + np.where(
         in_window, CHATTER_DEG * np.cos(phase), 0
     )
+    rate_phase = 2 * np.pi * CHATTER_HZ * (t - 0.5 * sum(r.centred(t, (start, end))))
     rate = 4.72 / BENCH_TAU * np.exp(-t / BENCH_TAU) + np.where(
-        in_window, FLUCT_DEG_S * np.cos(phase), 0.0
+        in_window, FLUCT_DEG_S * np.cos(rate_phase), 0.0
     )
     step = {"type": "step", "time_s": 0.0, "final": 4.72}
     scenario = experiment("rudder_deg", step, arm_mm=None if linkage else ARM_MM)
@@ -458,6 +459,21 @@ def test_differenced_rate_is_the_change_over_the_window():
     assert rate[np.abs(t - 1.0) > window].max() == 0.0
 
 
+def test_no_steady_rate_figure_reads_the_one_sided_end_of_the_differenced_rate():
+    """A reading still on the 4.72 deg step but for one count in the last 30 ms. A centred
+    difference reads that count as q / T, so the rate fluctuation (half peak-to-peak) is
+    q / (2 T); the one-sided differences of the last T / 2 divided it by as little as T / 2,
+    twice that, which the steady rate figures no longer read."""
+    experiment = load_scenario("bench-step").experiment()
+    t = grid(10.0, 1e-3)
+    q, window = 0.088, r.RATE_WINDOW_S
+    reading = np.where(t > t[-1] - 0.03, 4.72 + q, 4.72)
+    assert r.differenced_rate(t, reading).max() == pytest.approx(q / (0.5 * window))
+    out = r.reading_figures(experiment, t, reading)
+    assert out["velocity_fluctuation_deg_s"] == pytest.approx(0.5 * q / window, rel=1e-4)
+    assert r.centred(t, (2.0, t[-1])) == pytest.approx((2.0, t[-1] - 0.5 * window))
+
+
 def test_steady_window():
     assert r.BENCH_STEADY_S == 2.0
     assert r.steady_window(10.0) == (2.0, 10.0)
@@ -481,18 +497,27 @@ def test_bench_step(linkage):
     # (to the discretisation: both ends of the period are samples)
     assert out["velocity_fluctuation_deg_s"] == pytest.approx(FLUCT_DEG_S, rel=1e-3)
     # the reference is constant: the rate error is minus the rate
-    assert out["velocity_error_mean_deg_s"] == pytest.approx(0.0, abs=1e-6)
-    assert out["velocity_error_rms_deg_s"] == pytest.approx(FLUCT_DEG_S / math.sqrt(2), rel=1e-3)
-    assert out["velocity_error_std_deg_s"] == pytest.approx(FLUCT_DEG_S / math.sqrt(2), rel=1e-3)
+    # over the rate's window, 7.95 s of 5 Hz centred on a crest: the cosine's mean there is
+    # sin(pi f L) / (pi f L) of its amplitude (to the 1 ms samples: 2 % of it a sample of L)
+    span = math.pi * CHATTER_HZ * 7.95
+    expected = -FLUCT_DEG_S * math.sin(span) / span
+    assert out["velocity_error_mean_deg_s"] == pytest.approx(expected, rel=3e-2)
+    # and its mean square (1 + sin(2 pi f L) / (2 pi f L)) / 2 of the amplitude squared
+    square = FLUCT_DEG_S**2 * 0.5 * (1.0 + math.sin(2 * span) / (2 * span))
+    rms = math.sqrt(square)
+    assert out["velocity_error_rms_deg_s"] == pytest.approx(rms, rel=1e-3)
+    assert out["velocity_error_std_deg_s"] == pytest.approx(
+        math.sqrt(square - expected**2), rel=1e-3
+    )
 
 
 # --------------------------------------------------------------------------- bench sine
 
-BENCH_F = 0.05  # Hz; the steady window [2, 22] s is one whole period
+BENCH_F = 0.05  # Hz; the rate's steady window [2, 22] s (r.centred) is one whole period
 LAG_S = 0.2  # s: the rudder starts late, and first backs off
 
 
-def bench_sine_result(reverse_deg, gain=0.98, run=22.0):
+def bench_sine_result(reverse_deg, gain=0.98, run=22.05):
     t = grid(run, 1e-3)
     w = 2 * np.pi * BENCH_F
     late = t >= LAG_S

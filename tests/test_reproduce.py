@@ -29,7 +29,10 @@ def report(tmp_path_factory):
     os.chdir(out.parent)  # where no robustness study was run (runs/robustness/)
     try:
         # the ablation re-runs the bench experiments six times: tests/test_ablation.py checks it
-        result = CliRunner().invoke(app, ["reproduce", "--no-ablation", "--out", str(out)])
+        # the claims' replicas: tests/test_replicas.py; with 0 the report shows the latest
+        result = CliRunner().invoke(
+            app, ["reproduce", "--no-ablation", "--replicas", "0", "--out", str(out)]
+        )
     finally:
         os.chdir(here)
     assert result.exit_code == 0, result.output
@@ -41,6 +44,13 @@ def test_without_a_robustness_study_the_report_says_how_to_run_one(report):
     assert "No robustness study of these experiments" in text
     assert "emasim reproduce --robustness" in text
     assert "robustness" not in json.loads((report / "tables.json").read_text())
+
+
+def test_without_a_replica_study_the_report_decides_nothing_and_says_how_to_decide(report):
+    text = (report / "report.md").read_text()
+    assert "No replica study of these experiments" in text
+    assert "`emasim reproduce` runs one" in text
+    assert "claims" not in json.loads((report / "tables.json").read_text())
 
 
 def test_every_file_is_written(report):
@@ -69,13 +79,11 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
     tests/test_fingerprints.py)."""
     module = module_at("docs/readme_headline.py")
     stored = json.loads(module.STORE.read_text())
-    readme = module.README.read_text()
     robust = json.loads(module.ROBUSTNESS.read_text())
     vmap = json.loads(module.VERDICT_MAP.read_text())
-    steps = json.loads(module.INTEGRATION_STEP.read_text())
     assert module.PAGES["headline"] == (module.README, module.PAPER)
     for page in module.PAGES["headline"]:
-        expected = module.render(stored, robust, vmap, steps)
+        expected = module.render(stored, robust, vmap)
         assert block_of(page.read_text(), "headline") == expected
     measured = json.loads((report / "tables.json").read_text())["headline"]
     for key, item in stored.items():
@@ -84,25 +92,6 @@ def test_the_readmes_headline_is_the_one_this_reproduction_measures(report):
         for label, variant in item["variants"].items():
             ours = measured[key]["variants"][label]["value"]
             assert ours == pytest.approx(variant["value"], rel=1e-9), (key, label)
-    # the README's verdict line (part of the block) is the one this reproduction measures
-    assert module.verdict_line(measured, robust, steps) in readme
-
-
-def test_the_integration_step_table_is_the_one_this_reproduction_measures(report):
-    """docs/paper.md's integration-step block is docs/integration_step.json rendered, and a
-    fresh reproduction measures those figures at every step."""
-    module = module_at("docs/readme_headline.py")
-    stored = json.loads(module.INTEGRATION_STEP.read_text())
-    page = module.PAPER.read_text()
-    assert block_of(page, "integration-step") == module.render_integration_step(stored)
-    measured = json.loads((report / "tables.json").read_text())["integration_step"]
-    assert measured.keys() == stored.keys() == set(HEADLINE)
-    for key, entry in stored.items():
-        assert measured[key]["step_s"] == entry["step_s"]
-        for label, values in entry["values"].items():
-            assert measured[key]["values"][label] == pytest.approx(values, rel=1e-9), key
-    text = (report / "report.md").read_text()
-    assert "## The integration step" in text and "turns with the integration step" in text
 
 
 def test_the_readme_gives_the_hybrid_against_each_pid_variant_with_its_win_rates():
@@ -133,50 +122,7 @@ def test_the_readme_gives_the_hybrid_against_each_pid_variant_with_its_win_rates
         if line.startswith("| sine speed fluctuation |")
     ]
     assert row.endswith("| 90 % [85, 94] / 30 % [24, 37] | 1 / 4 of 4 |")
-    assert len(table) == 2 + len(module.NAMES) + 2
-
-
-def test_the_readmes_verdict_line_says_all_five_only_when_the_monte_carlo_settles_them():
-    module = module_at("docs/readme_headline.py")
-    industrial = {"value": 1.0, "hybrid_reduction": 0.5}
-    items = {
-        key: {
-            "hybrid_better": True,
-            "ours_hybrid": 0.5,
-            "variants": {module.INDUSTRIAL: industrial},
-        }
-        for key in module.NAMES
-    }
-    sure = {"runs": 200, "win_rate": 0.9, "win_rate_ci95": [0.85, 0.94]}
-    verdicts = {key: {"against": {"PID": sure, module.INDUSTRIAL: sure}} for key in module.NAMES}
-    assert module.verdict_line(items, verdicts) == (
-        "As measured on the nominal bench, the hybrid beats PID on all five figures, on the "
-        "nominal bench and over the plants; and the industrial PID on all five figures, on the "
-        "nominal bench and over the plants."
-    )
-    assert "PID on 5 of the five" in module.verdict_line(items)  # no Monte Carlo: no "all"
-    holding = {"values": {"PID": [1.0, 1.0, 1.0], "hybrid": [0.5, 0.6, 0.4]}}
-    turning = {"values": {"PID": [1.0, 1.0, 1.0], module.INDUSTRIAL: [0.5, 0.5, 0.5]}}
-    turning["values"]["hybrid"] = [0.4, 0.45, 0.6]  # beats PID at every step, not the other
-    steps = {
-        "sine_speed_fluctuation_reduction": turning,
-        "step_vibration_amplitude_reduction": holding,
-    }
-    line = module.verdict_line(items, verdicts, steps)
-    assert line.startswith(  # a verdict that turns with the step is never among "all five"
-        "As measured on the nominal bench, the hybrid beats PID on all five figures, on the "
-        "nominal bench and over the plants; and the industrial PID on 5 of the five ("
-    )
-    assert line.endswith(
-        " The verdicts against the industrial PID on sine speed fluctuation turn at half or "
-        "twice the integration step: the simulation does not settle them."
-    )
-    items["step_speed_fluctuation_reduction"]["hybrid_better"] = False
-    items["sine_displacement_lag_reduction"]["variants"][module.INDUSTRIAL] = {"value": 0.1}
-    against_pid, against_industrial = module.verdict_line(items, verdicts).split("; and the ")
-    assert "PID on 4 of the five (" in against_pid and "step speed" not in against_pid
-    assert against_industrial.startswith("industrial PID on 4 of the five (")
-    assert "lag" not in against_industrial
+    assert len(table) == 2 + len(module.NAMES)
 
 
 def test_the_reproduced_verdicts_stay_inside_the_monte_carlos_spread(report):
@@ -276,8 +222,6 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
     looser = ("PI", "fuzzy-PI")  # the position laws whose load dip is 0.7 to 0.8 mm
     bench, sine_bench = m["bench-step"], m["bench-sine"]
     pid, hybrid = bench["PID"], bench["hybrid"]
-    tables = json.loads((report / "tables.json").read_text())["integration_step"]
-    steps = {key: entry["values"] for key, entry in tables.items()}  # half, shipped, twice
     claims = {  # the notes' words -> ((measured, written), ...)
         "reads a steady RMS error of 0.026 deg": ((pid["steady_error_rms_deg"], "0.026"),),
         "its true angle sits 0.035 deg RMS off the target and moves by 0.025 deg": (
@@ -298,14 +242,6 @@ def test_the_notes_numbers_are_the_ones_this_reproduction_measures(report):
         ),
         "feed-forwards do most of the work (0.082 deg)": (
             (sine_bench["industrial PID"]["tracking_error_deg"], "0.082"),
-        ),
-        "at twice the step the hybrid lags less (0.084 against 0.085 deg)": (
-            (steps["sine_displacement_lag_reduction"]["hybrid"][2], "0.084"),
-            (steps["sine_displacement_lag_reduction"]["industrial PID"][2], "0.085"),
-        ),
-        "its speed fluctuation is the lower (1.28 against 1.47 deg/s)": (
-            (steps["sine_speed_fluctuation_reduction"]["hybrid"][2], "1.28"),
-            (steps["sine_speed_fluctuation_reduction"]["industrial PID"][2], "1.47"),
         ),
         "Ours settles in 0.3 to 0.4 s": (
             (min(r["settling_time_s"] for r in pos.values()), "0.3"),

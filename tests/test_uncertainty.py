@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from emasim.experiments import robustness
+from emasim.experiments import robustness, study
 from emasim.experiments.study import plan_study, resolved_value
 from emasim.experiments.uncertainty import (
     ROWS,
@@ -167,7 +167,7 @@ def test_the_seed_draws_other_plants_into_another_folder(monkeypatch, tmp_path):
         seen.append((spec.seed, folder))
         return Done()
 
-    monkeypatch.setattr(robustness, "run_study", fake_study)
+    monkeypatch.setattr(study, "run_study", fake_study)  # what run_studies calls
     robustness.run_robustness(3, root=tmp_path, seed=7)
     assert seen == [
         (7, robustness.study_folder(name, 3, tmp_path, seed=7)) for name in robustness.SCENARIOS

@@ -810,13 +810,23 @@ def reproduce(
             help="the seed of the --robustness Monte Carlo's draws (each seed its own study)",
         ),
     ] = 0,
+    replicas: Annotated[
+        int,
+        typer.Option(
+            min=0,
+            max=1000,
+            help="the paired replicas over which the abstract's claims are decided (minutes; "
+            "resumable, in runs/replicas/); 0: show the latest complete replica study",
+        ),
+    ] = 16,
 ) -> None:
-    """Run every paper experiment and write report.md, report.html and tables.json; the
+    """Run every paper experiment and write report.md, report.html and tables.json; decide
+    the abstract's claims over --replicas paired replicas (SPEC section 8); the
     robustness of the headline verdicts, the wear and the verdict map are those of the last
     --robustness studies of these experiments, --seed and version, when they exist."""
     from .analysis.paper_report import EXPERIMENTS
     from .errors import InputError
-    from .experiments.reproduction import check_robustness
+    from .experiments.reproduction import check_replicas, check_robustness
     from .experiments.reproduction import reproduce as run_all
     from .output import check_target
 
@@ -836,6 +846,8 @@ def reproduce(
     try:
         if robustness:
             check_robustness(only)
+        if ctx.get_parameter_source("replicas").name != "DEFAULT":
+            check_replicas(only)
         if out is not None:
             check_target(out, force)
         _notice_compile()
@@ -847,15 +859,37 @@ def reproduce(
             with_ablation=ablation,
             robustness_runs=runs if robustness else None,
             robustness_seed=seed,
+            replica_count=replicas,
         )
     except EmasimError as err:
         _fail(err)
     finally:
         progress.close()
+    _print_claims(folder)
     log.info(
         f"wrote {folder}/report.md, report.html, tables.json, runs.parquet in "
         f"{time.perf_counter() - start:.1f} s"
     )
+
+
+def _print_claims(folder: Path) -> None:
+    """The abstract's claims as the report decided them, a line each (emasim.analysis.claims),
+    when the report holds them."""
+    import json
+
+    from .analysis.claims import claim_lines
+
+    tables = folder / "tables.json"
+    claims = json.loads(tables.read_text()).get("claims") if tables.is_file() else None
+    if claims:
+        console.print(
+            f"the abstract's claims over {claims['replicas']} paired replicas "
+            "(measured: what the bench sees; true: the rudder's angle):",
+            soft_wrap=True,
+            markup=False,
+        )
+        for line in claim_lines(claims):
+            console.print(f"  {line}", soft_wrap=True, markup=False)
 
 
 @app.command()
@@ -893,7 +927,7 @@ def acceptance(
         from .experiments.acceptance import Battery, check_acceptance, run_acceptance
 
         battery = Battery(excitation=excitation)
-        check_acceptance(sc, label)  # every rule, before anything is compiled or written
+        check_acceptance(sc, label, battery)  # every rule, before anything is compiled or run
         if out is not None:
             check_target(out, force)  # refuse before spending the simulation time
         _notice_compile()

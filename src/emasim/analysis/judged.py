@@ -5,7 +5,7 @@ Read by the report (:mod:`emasim.analysis.paper_report`), the component tables
 (:mod:`emasim.analysis.components`) and the experiments that run the verdicts.
 """
 
-from .report import BENCH_STEADY_S
+from .report import BENCH_STEADY_S, RATE_WINDOW_S
 
 # paper table key -> (our metric key, unit); lower magnitude is better for every one of them
 BENCH_STEP_ROWS = {
@@ -57,6 +57,37 @@ HEADLINE = {  # abstract figure -> (experiment, paper row, definition)
         f"half peak-to-peak of the rudder rate about its fitted sine from {BENCH_STEADY_S:g} s",
     ),
 }
+# headline figure -> (multiple, unit, why): what one step of the bench's reading changes the
+# measured figure by, its resolution and so the least of its tie band
+# (emasim.analysis.verdict_rule), in rudder-encoder counts q ("count", deg) or in the rate's
+# quanta q / RATE_WINDOW_S ("rate", deg/s: the reading differenced over RATE_WINDOW_S)
+RESOLUTION = {
+    "step_steady_error_reduction": (
+        1.0,
+        "count",
+        "an RMS of readings moves by up to one count when the readings move by one",
+    ),
+    "step_vibration_amplitude_reduction": (
+        0.5,
+        "count",
+        "half peak-to-peak: one count more at either extreme moves it by half a count",
+    ),
+    "step_speed_fluctuation_reduction": (
+        0.5,
+        "rate",
+        f"half peak-to-peak of a rate read in quanta of q / {RATE_WINDOW_S:g} s",
+    ),
+    "sine_displacement_lag_reduction": (
+        1.0,
+        "count",
+        "the largest |error| moves by one count when the reading does",
+    ),
+    "sine_speed_fluctuation_reduction": (
+        0.5,
+        "rate",
+        f"half peak-to-peak of a rate read in quanta of q / {RATE_WINDOW_S:g} s",
+    ),
+}
 PID_LABEL, HYBRID_LABEL = "PID", "hybrid"
 INDUSTRIAL_LABEL = "industrial PID"  # velocity and acceleration feed-forward
 ABLATED_TABLES = {"bench_step": BENCH_STEP_ROWS, "bench_sine": BENCH_SINE_ROWS}
@@ -72,3 +103,10 @@ def figure_words(key: str) -> str:
     """How the reports name a headline figure: its key in words ('sine displacement lag' for
     'sine_displacement_lag_reduction')."""
     return key.removesuffix("_reduction").replace("_", " ")
+
+
+def resolution(key: str, count_deg: float) -> float:
+    """The measured headline figure ``key``'s resolution (RESOLUTION) for a rudder encoder of
+    ``count_deg`` degrees a count: deg, or deg/s for a rate figure."""
+    multiple, unit, _ = RESOLUTION[key]
+    return multiple * count_deg / (RATE_WINDOW_S if unit == "rate" else 1.0)

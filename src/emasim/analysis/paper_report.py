@@ -4,10 +4,10 @@ Nothing here runs a simulation: :mod:`emasim.experiments.reproduction` runs the 
 hands their metrics and figures to :func:`build_tables` and :func:`write_report`. ``emasim
 reproduce`` writes, atomically:
 ``report.md`` and ``report.html`` (figures, tables 2-7 and the simulation figures' numbers with
-the paper's values beside ours, the five headline figures of the abstract, the ablation of the
-bench's elements, the headline figures at half and twice the integration step, the assumptions
-and the tuning record), ``tables.json`` (the same numbers for machines, with a ``headline``
-object, an ``integration_step`` object and an ``ablation`` list),
+the paper's values beside ours, the abstract's claims over paired replicas, the five headline
+figures of the abstract, the ablation of the bench's elements, the assumptions and the tuning
+record), ``tables.json`` (the same numbers for machines, with a ``claims`` object, a
+``headline`` object and an ``ablation`` list),
 ``figures/*.png`` and ``runs/<experiment>/`` (every run, with its scenario and metadata).
 The paper's numbers are in ``paper_results.toml`` beside this module (transcribed from the text).
 """
@@ -45,6 +45,7 @@ from .report import (
 )
 from .tables import markdown_table, number_cell
 from .units import unit_of
+from .verdict_rule import MAX_PERCENT
 
 
 @dataclass(frozen=True)
@@ -295,7 +296,11 @@ def definitions() -> list[str]:
 
 
 def _pct(value) -> str:
-    return "-" if value is None else f"{100 * value:.0f} %"
+    """A reduction in percent; '-' for none or one beyond +-MAX_PERCENT, which says no more
+    than that the baseline is near zero (or round-off: emasim.analysis.verdict_rule)."""
+    if value is None or not abs(100 * value) <= MAX_PERCENT:
+        return "-"
+    return f"{100 * value:.0f} %"
 
 
 def _bench_markdown(table: list[dict]) -> str:
@@ -632,6 +637,21 @@ def write_report(
         "feed-forward (the derivative on the measurement in both). All run over the same "
         "current loop on the same virtual bench.",
     ]
+    if tables.get("claims"):
+        from .claims import markdown as claims_markdown
+
+        parts += claims_markdown(tables["claims"])
+        if tables.get("run_length"):
+            from .claims import length_markdown
+
+            parts += length_markdown(tables["run_length"])
+    elif "headline" in tables:
+        parts += [
+            "## The abstract's claims over paired replicas",
+            "No replica study of these experiments and this emasim version yet: "
+            "`emasim reproduce` runs one (`--replicas N`, default 16); the single runs "
+            "below decide nothing.",
+        ]
     if "headline" in tables:
         parts += ["## The abstract's five figures", _headline_markdown(tables["headline"])]
     if tables.get("robustness"):
@@ -653,10 +673,6 @@ def write_report(
             "No verdict map of these experiments and this emasim version yet: "
             "`emasim reproduce --robustness` makes one with the Monte Carlo.",
         ]
-    if tables.get("integration_step"):
-        from .integration_step import markdown as integration_step_markdown
-
-        parts += integration_step_markdown(tables["integration_step"])
     if tables.get("components"):
         parts += _components_markdown(tables["components"])
     for exp in EXPERIMENTS:

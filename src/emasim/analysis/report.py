@@ -37,7 +37,10 @@ angle, as a step or a sine. Every window and band is stated here, once:
   whether the rudder first moves against the command (below -REVERSE_DEG in the first second)
   and how far (reverse_motion_deg, 0 when it never goes below 0),
   the peak velocity in the first second, the velocity fluctuation (half peak-to-peak of the
-  velocity about its best-fitting sine) after BENCH_STEADY_S.
+  velocity about its best-fitting sine) after BENCH_STEADY_S;
+* every steady rate figure of the bench (fluctuation, rate error), true and measured, leaves
+  out the last RATE_WINDOW_S / 2 of the run (:func:`centred`), where the differenced rate
+  is one-sided.
 
 Every run also reports the time the drive spent at each of its limits (current, voltage,
 speed: the limit_flags the engine records at each recorded row, times the recording period)
@@ -141,9 +144,7 @@ def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     """
     t = result.t
     experiment = experiment_of(result)
-    command = encode([TERM.validate_python(term) for term in experiment.reference])
-    reference = signal_values(command, t)
-    reference_rate = np.gradient(reference, t)
+    reference, reference_rate = command_traces(experiment, t)
     if measured:
         angle = DEG_PER_RAD * result["measured_rudder_rad"]
         return angle, reference, differenced_rate(t, angle), reference_rate
@@ -155,9 +156,17 @@ def rudder_traces(result, measured: bool = False) -> tuple[np.ndarray, ...]:
     return angle, reference, rate, reference_rate
 
 
+def command_traces(experiment, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The experiment's command at times ``t`` and its rate (np.gradient), in its unit."""
+    command = encode([TERM.validate_python(term) for term in experiment.reference])
+    reference = signal_values(command, t)
+    return reference, np.gradient(reference, t)
+
+
 def differenced_rate(t: np.ndarray, reading: np.ndarray) -> np.ndarray:
     """The rate a bench computes from an encoder reading: its change over RATE_WINDOW_S,
-    centred on each row, (y(t + T/2) - y(t - T/2)) / T (one-sided within T/2 of the ends).
+    centred on each row, (y(t + T/2) - y(t - T/2)) / T (one-sided within T/2 of the ends,
+    which no rate figure reads: :func:`centred`).
 
     An encoder of quantum q reads rates in steps of q / T: with the rudder's TTL encoder
     (0.088 deg) and T = 0.1 s, 0.88 deg/s, finer than the paper's smallest PID rate figures
@@ -169,6 +178,18 @@ def differenced_rate(t: np.ndarray, reading: np.ndarray) -> np.ndarray:
     rows = np.arange(t.size)
     ahead, behind = np.minimum(rows + half, t.size - 1), np.maximum(rows - half, 0)
     return (reading[ahead] - reading[behind]) / (t[ahead] - t[behind])
+
+
+def centred(t: np.ndarray, window: tuple[float, float]) -> tuple[float, float]:
+    """``window`` less the first and last RATE_WINDOW_S / 2 of the run: where the differenced
+    rate (:func:`differenced_rate`) is centred. Every steady rate figure of the bench, true
+    and measured alike, reads this window: a one-sided difference at the end divides the last
+    counts' change by as little as half the window, up to twice the rate, and made a third of
+    the hybrid's step rate fluctuation. A window with no centred row (a run shorter than the
+    difference's window) is kept whole."""
+    half = 0.5 * RATE_WINDOW_S
+    start, end = max(window[0], t[0] + half), min(window[1], t[-1] - half)
+    return (start, end) if start < end else window  # no centred rate: a run shorter than T
 
 
 def steady_window(t_end: float) -> tuple[float, float]:
@@ -508,7 +529,12 @@ def _step_ends(blocks, t_step_end: float) -> tuple[float, float]:
 
 def _sine_frequency(result) -> float:
     """The frequency (Hz) of the run's sine reference: its one sine term's."""
-    frequency = experiment_of(result).sine_frequency_Hz
+    return _sine_frequency_of(experiment_of(result))
+
+
+def _sine_frequency_of(experiment) -> float:
+    """The frequency (Hz) of the experiment's sine reference: its one sine term's."""
+    frequency = experiment.sine_frequency_Hz
     if frequency is None:
         raise ValueError("a sine's metrics need a reference with one sine term")
     return frequency
@@ -595,22 +621,34 @@ TRUE_PREFIX = "true_"  # a bench figure of the true rudder angle, beside the mea
 
 
 def with_true_figures(result, figures) -> dict:
-    """``figures(result, t, angle, reference, rate, reference_rate)`` on the measured rudder
+    """``figures(experiment, t, angle, reference, rate, reference_rate)`` on the measured rudder
     traces, and under TRUE_PREFIX on the true ones; the true ones alone (unprefixed) for a
     trace that lacks the encoder's reading (a result written before it was recorded)."""
-    t = result.t
-    true = figures(result, t, *rudder_traces(result))
+    t, experiment = result.t, experiment_of(result)
+    true = figures(experiment, t, *rudder_traces(result))
     if "measured_rudder_rad" not in result.columns:
         return true
-    measured = figures(result, t, *rudder_traces(result, measured=True))
+    measured = figures(experiment, t, *rudder_traces(result, measured=True))
     return measured | {TRUE_PREFIX + key: value for key, value in true.items()}
 
 
-def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> dict:
+def reading_figures(experiment, t: np.ndarray, reading: np.ndarray) -> dict:
+    """The measured figures of a rudder experiment computed on a given rudder encoder
+    ``reading`` (deg) at times ``t`` (s), its rate differenced as the bench's
+    (:func:`differenced_rate`); keys as the measured figures of :func:`bench_step_metrics`
+    or :func:`bench_sine_metrics`. With the command itself read through the encoder, these
+    are the measurement floor: what a perfect follower scores (emasim.experiments.replicas)."""
+    reference, reference_rate = command_traces(experiment, t)
+    figures = _rudder_sine_figures if experiment.shape == "sine" else _rudder_step_figures
+    return figures(experiment, t, reading, reference, differenced_rate(t, reading), reference_rate)
+
+
+def _rudder_step_figures(experiment, t, angle, reference, rate, reference_rate) -> dict:
     final = reference[-1]
     steady = steady_window(t[-1])
+    rates = centred(t, steady)
     error = m.error_stats(t, reference - angle, steady)
-    rate_error = m.error_stats(t, reference_rate - rate, steady)
+    rate_error = m.error_stats(t, reference_rate - rate, rates)
     chat = m.chattering(t, angle, steady)
     out = {
         "rise_time_s": m.rise_time(t, angle, initial=0.0, final=final),
@@ -623,7 +661,7 @@ def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> d
         "steady_error_std_deg": error.std,
         "steady_error_rms_deg": error.rms,
         "peak_velocity_deg_s": m.peak_value(t, rate),
-        "velocity_fluctuation_deg_s": m.fluctuation_amplitude(t, rate, steady),
+        "velocity_fluctuation_deg_s": m.fluctuation_amplitude(t, rate, rates),
         "velocity_error_mean_deg_s": rate_error.mean,
         "velocity_error_std_deg_s": rate_error.std,
         "velocity_error_rms_deg_s": rate_error.rms,
@@ -631,8 +669,8 @@ def _rudder_step_figures(result, t, angle, reference, rate, reference_rate) -> d
     return {k: float(v) for k, v in out.items()}
 
 
-def _rudder_sine_figures(result, t, angle, reference, rate, reference_rate) -> dict:
-    frequency = _sine_frequency(result)
+def _rudder_sine_figures(experiment, t, angle, reference, rate, reference_rate) -> dict:
+    frequency = _sine_frequency_of(experiment)
     steady = steady_window(t[-1])
     track = m.sine_tracking(t, angle, reference, frequency, steady)
     start = (t[0], t[0] + 1.0)
@@ -644,6 +682,6 @@ def _rudder_sine_figures(result, t, angle, reference, rate, reference_rate) -> d
         "initial_reverse_motion": float(angle[first_second].min() < -REVERSE_DEG),
         "reverse_motion_deg": float(max(0.0, -angle[first_second].min())),
         "peak_velocity_deg_s": m.peak_value(t, rate, start),
-        "velocity_fluctuation_deg_s": m.sine_fluctuation(t, rate, frequency, steady),
+        "velocity_fluctuation_deg_s": m.sine_fluctuation(t, rate, frequency, centred(t, steady)),
     }
     return {k: float(v) for k, v in out.items()}

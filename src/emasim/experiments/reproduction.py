@@ -1,9 +1,10 @@
 """The paper's experiments, run: every shipped paper scenario's comparison, the hinge
 clearance sweep, the ablation of the bench's elements, the hybrid part by part
-(emasim.experiments.components) and the bench experiments at half and twice their
-integration step (emasim.experiments.integration_step); with ``robustness_runs``, the Monte
-Carlo, the wear study and the verdict map (emasim.experiments.verdict_map) too, else their
-latest studies; rendered by :mod:`emasim.analysis.paper_report` into one report folder."""
+(emasim.experiments.components), the abstract's claims over paired replicas
+(emasim.experiments.replicas) and the step test's length (emasim.experiments.run_length);
+with ``robustness_runs``, the Monte Carlo, the wear study and the verdict map
+(emasim.experiments.verdict_map) too, else their latest studies; rendered by
+:mod:`emasim.analysis.paper_report` into one report folder."""
 
 import math
 import time
@@ -26,13 +27,13 @@ from ..errors import InputError
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import check_target, write_folder, write_new
 from ..scenarios.loader import load_scenario
-from . import verdict_map, wear
+from . import replicas, verdict_map, wear
 from .ablation import STAGES, ablation_jobs, ablation_table
 from .batch import Job, comparison_of
 from .components import component_jobs, component_tables
-from .integration_step import step_jobs, step_table
 from .robustness import DEFAULT_SEED, UNCERTAINTY, latest, run_robustness
 from .robustness import SCENARIOS as ROBUST
+from .run_length import run_length
 from .store import METRICS_FILE, RUN_ID, Store, keyed, run_id_of
 from .uncertainty import markdown as uncertainty_table
 
@@ -81,8 +82,7 @@ def _ablated(chosen: dict, with_ablation: bool) -> dict:
 def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
     """The reproduction's runs by group: each ``chosen`` experiment's controller sets (their
     traces kept, for the figures and the report's run folders), the clearance sweep (when
-    cosim-step is among them), the ablation of the bench ones, the hybrid part by part and
-    the bench ones at half and twice their integration step;
+    cosim-step is among them), the ablation of the bench ones and the hybrid part by part;
     each job's run id names its group, tags and label."""
     ablated = _ablated(chosen, with_ablation)
     groups = {
@@ -94,7 +94,6 @@ def job_groups(chosen: dict, with_ablation: bool) -> dict[str, list[Job]]:
         "sweep": sweep_jobs() if "cosim-step" in chosen else [],
         "ablation": ablation_jobs(ablated, ablated, labels=LABELS),
         "components": component_jobs(chosen),
-        "integration_step": step_jobs(chosen),
     }
     return {
         group: [
@@ -147,11 +146,6 @@ def _run_experiments(chosen: dict, with_ablation: bool, progress) -> tuple[dict,
             groups["components"],
             metrics["components"],
             {name: c.metrics for name, c in comparisons.items()},
-        )
-    if groups["integration_step"]:
-        shipped = {name: c.metrics for name, c in comparisons.items()}
-        tables["integration_step"] = step_table(
-            chosen, groups["integration_step"], metrics["integration_step"], shipped
         )
     ablated = _ablated(chosen, with_ablation)
     if ablated:
@@ -240,6 +234,18 @@ def _counted(progress):
     return None if progress is None else (lambda done, total: progress(done / total))
 
 
+def check_replicas(only: list[str] | None) -> None:
+    """Refuse ``--replicas`` with an ``--only`` that leaves out a bench experiment: the claims
+    it decides are the headline's, which takes both (replicas.SCENARIOS)."""
+    missing = [name for name in replicas.SCENARIOS if only and name not in only]
+    if missing:
+        raise InputError(
+            f"--replicas: the abstract's claims are decided on both bench experiments "
+            f"({', '.join(replicas.SCENARIOS)}); --only leaves out {', '.join(missing)} "
+            f"(add --only {' --only '.join(missing)}, or leave --replicas out)"
+        )
+
+
 def reproduce(
     out: str | Path | None = None,
     only: list[str] | None = None,
@@ -248,6 +254,7 @@ def reproduce(
     with_ablation: bool = True,
     robustness_runs: int | None = None,
     robustness_seed: int = DEFAULT_SEED,
+    replica_count: int = replicas.DEFAULT_REPLICAS,
 ) -> Path:
     """Run the paper's experiments (or ``only`` those) and write the report folder; with
     ``with_ablation``, also the ablation of the bench's elements (emasim.experiments.ablation)
@@ -257,7 +264,10 @@ def reproduce(
     unless both bench experiments are chosen (:func:`check_robustness`); without it, the
     report shows the latest complete ones of these experiments and version, if any (the
     largest Monte Carlo of that seed). ``robustness_seed``: the seed of the Monte Carlo's
-    draws (each seed its own study, run or shown).
+    draws (each seed its own study, run or shown). ``replica_count``: the replicas over which
+    the abstract's claims are decided (emasim.experiments.replicas) and the step test's
+    length is checked (emasim.experiments.run_length), run or resumed with the headline; 0
+    shows the latest complete replica study's claims instead, if any.
 
     Without ``out``, a fresh ``runs/reproduce/all-<time>`` (or ``only-<names>-<time>``);
     ``force`` replaces an earlier report at ``out`` (never anything emasim did not write).
@@ -277,6 +287,11 @@ def reproduce(
     }
     comparisons, tables, store = _run_experiments(chosen, with_ablation, _counted(progress))
     if "headline" in tables:
+        if replica_count:
+            tables["claims"] = replicas.run_replicas(replica_count, progress=_counted(progress))
+            tables["run_length"] = run_length(replica_count, progress=_counted(progress))
+        else:
+            tables["claims"] = replicas.latest()
         if robustness_runs is not None:
             tables["robustness"] = run_robustness(
                 robustness_runs, progress=_counted(progress), seed=robustness_seed
@@ -286,8 +301,8 @@ def reproduce(
         else:
             tables["robustness"], tables["wear"] = latest(seed=robustness_seed), wear.latest()
             tables["verdict_map"] = verdict_map.latest()
-        for key in ("robustness", "wear", "verdict_map"):
-            if not tables[key]:
+        for key in ("claims", "run_length", "robustness", "wear", "verdict_map"):
+            if not tables.get(key, True):
                 del tables[key]
 
     def write(folder: Path) -> None:

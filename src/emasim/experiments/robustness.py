@@ -42,8 +42,8 @@ from ..analysis.judged import (
     PID_LABEL,
 )
 from ..naming import RUNS_ROOT
-from .store import OK, read_table
-from .study import StudySpec, run_study
+from .store import OK
+from .study import StudySpec, largest_complete, run_studies
 from .uncertainty import COLUMNS, SEED, UNCERTAINTY
 
 SCENARIOS = ("bench-step", "bench-sine")
@@ -103,24 +103,8 @@ def run_robustness(
     """Run (or resume) the Monte Carlo of every bench experiment, its draws from ``seed``;
     return :func:`verdicts`. ``progress(done, total)`` counts the runs of all experiments
     together."""
-    totals = {scenario: (len(BASELINES) + 1) * runs for scenario in SCENARIOS}
-    done = dict.fromkeys(SCENARIOS, 0)
-    tables = {}
-    for scenario in SCENARIOS:
-
-        def told(count, _, scenario=scenario):
-            done[scenario] = count
-            if progress is not None:
-                progress(sum(done.values()), sum(totals.values()))
-
-        study = run_study(
-            spec_for(scenario, runs, seed),
-            study_folder(scenario, runs, root, seed),
-            progress=told,
-            client=client,
-            scheduler=scheduler,
-        )
-        tables[scenario] = study.table
+    studies = {s: (spec_for(s, runs, seed), study_folder(s, runs, root, seed)) for s in SCENARIOS}
+    tables = run_studies(studies, progress, client, scheduler)
     return verdicts(tables)
 
 
@@ -129,21 +113,11 @@ def latest(root: Path = ROOT, seed: int = DEFAULT_SEED) -> dict | None:
     ``seed`` and version, or None when there is none."""
     tables = {}
     for scenario in SCENARIOS:
-        found = None
-        for folder in root.glob(f"{scenario}-{study_key(scenario, seed=seed)}-*"):
-            runs = folder.name.rsplit("-", 1)[-1]
-            if not runs.isdigit():
-                continue
-            try:
-                table = read_table(folder)
-            except (OSError, ValueError):
-                continue
-            complete = (len(BASELINES) + 1) * int(runs)
-            if len(table) == complete and (found is None or len(table) > len(found)):
-                found = table
+        prefix = f"{scenario}-{study_key(scenario, seed=seed)}"
+        found = largest_complete(root, prefix, len(BASELINES) + 1)
         if found is None:
             return None
-        tables[scenario] = found
+        tables[scenario] = found[1]
     return verdicts(tables)
 
 

@@ -294,6 +294,48 @@ def run_study(
     return study
 
 
+def run_studies(
+    studies: dict[str, tuple[StudySpec, Path]],
+    progress=None,
+    client=None,
+    scheduler=None,
+) -> dict:
+    """Run (or resume) each study of ``studies`` (name -> (spec, folder)) one after the other
+    (:func:`run_study`) and return name -> its table. ``progress(done, total)`` counts the
+    runs of all of them together (each spec names its labels: ``runs`` runs of each)."""
+    totals = {name: spec.runs * len(spec.labels) for name, (spec, _) in studies.items()}
+    done = dict.fromkeys(studies, 0)
+    tables = {}
+    for name, (spec, folder) in studies.items():
+
+        def told(count, _, name=name):
+            done[name] = count
+            if progress is not None:
+                progress(sum(done.values()), sum(totals.values()))
+
+        study = run_study(spec, folder, progress=told, client=client, scheduler=scheduler)
+        tables[name] = study.table
+    return tables
+
+
+def largest_complete(root: Path, prefix: str, rows_per_run: int) -> tuple[int, object] | None:
+    """(runs, table) of the largest complete study among the folders ``<prefix>-<runs>`` under
+    ``root`` (``rows_per_run`` rows a run: one per controller set), or None when there is none;
+    a folder that cannot be read is passed over."""
+    found = None
+    for folder in root.glob(f"{prefix}-*"):
+        runs = folder.name.rsplit("-", 1)[-1]
+        if not runs.isdigit():
+            continue
+        try:
+            table = read_table(folder)
+        except (OSError, ValueError):
+            continue
+        if len(table) == rows_per_run * int(runs) and (found is None or int(runs) > found[0]):
+            found = (int(runs), table)
+    return found
+
+
 def complete_tables(folders: dict, rows: int) -> dict | None:
     """key -> the table (:func:`read_table`) of each study folder of ``folders`` (key ->
     folder), or None when any is missing, unreadable or not yet ``rows`` rows long."""

@@ -9,11 +9,12 @@ is ours and only its order of magnitude is known); a ``*`` spec scales the bench
 
 from dataclasses import dataclass
 
-from ..plant.presets import LOADER_RATED_TORQUE_NM
+from ..plant.presets import LOADER_RATED_TORQUE_NM, ttl_rudder_encoder
 
 TABLE_BLOCK = "uncertainty"  # docs/paper.md's block of the table
 SEED = "seed"
 TWO_EITHER_WAY = "*loguniform(0.5, 2)"
+RUDDER_COUNT = ttl_rudder_encoder().resolution  # rad: one count of the bench's rudder encoder
 BOLTED = "*uniform(0.7, 1.3)"
 DAMPING_REASON = (
     "a factor of 2 either way of our damping ratio: the structural damping of bolted steel "
@@ -55,9 +56,10 @@ ROWS = (
     ),
     Uncertain(
         "hinge clearance",
-        "plant.linkage.hinge_clearance_mm=uniform(0, 0.05)",
-        "every joint alike, from none to a loose running fit of the 20 mm pins (ISO 286 "
-        "H7/g6 at 20 mm: 0.007 to 0.041 mm)",
+        "plant.linkage.hinge_clearance_mm=uniform(0, 0.0205)",
+        "every joint alike, radial (the model's), from none to the largest of a running fit "
+        "of the 20 mm pins: ISO 286 H7/g6 at 20 mm gives 0.007 to 0.041 mm diametral, half "
+        "of it radial",
     ),
     Uncertain(
         "load inertia",
@@ -146,6 +148,13 @@ ROWS = (
         "its amplitude 0 to 60\": the encoder's +-60\" class bounds the error, a unit's lies "
         "anywhere below; its phase is no parameter (zero at the neutral, where the count is "
         "referenced)",
+    ),
+    Uncertain(
+        "encoder phase",
+        f"sensors.rudder.offset=uniform({-0.5 * RUDDER_COUNT!r}, {0.5 * RUDDER_COUNT!r})",
+        "where the rudder encoder's grid falls on the true angle, uniform over one count "
+        "(+-q/2): set by how the encoder was mounted; the rudder starts at rest at the "
+        "neutral, so it also sets where the start lies within a count",
     ),
     Uncertain(SEED, "seed=integers(0, 4294967295)", "a new sensor-noise realisation each plant"),
 )

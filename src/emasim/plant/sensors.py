@@ -128,6 +128,22 @@ def _sample(i, v, table, state):
 
 
 @njit(cache=True, error_model="numpy")
+def read_series(values, table, channel):
+    """Channel ``channel``'s readings of the true values ``values``, one sample each, by the
+    law of every reading (:func:`_sample`: play operator from the first value, accuracy
+    error, offset, noise from the compiled generator (:func:`seed_noise`), quantum): what the
+    sensor makes of a given signal, such as a perfect follower's (the measurement floor,
+    emasim.experiments.replicas). ``table`` is a sensor table (module docstring)."""
+    state = np.zeros((table.shape[0], N_SENSOR_STATE))
+    out = np.empty(values.size)
+    if values.size:
+        state[channel, ST_GAP] = values[0]
+    for k in range(values.size):
+        out[k] = _sample(channel, values[k], table, state)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def measure(x, p, table, state, meas, tick):
     """Fill ``meas`` with every channel's reading at control tick ``tick`` (module docstring).
 
