@@ -116,14 +116,24 @@ def floor_figures(scenario, rudder_offset_rad: float) -> dict:
     its command at every recorded time, read through that encoder (emasim.plant.sensors:
     quantum, accuracy error, offset), its rate differenced as the bench's
     (emasim.analysis.report.reading_figures)."""
+    return floor_reader(scenario)(rudder_offset_rad)
+
+
+def floor_reader(scenario):
+    """:func:`floor_figures` of ``scenario`` as a function of the rudder encoder's offset: the
+    scenario's times, sensor table and command made once for all its replicas."""
     setup = scenario.setup()
     t = np.arange(setup.recorded_rows) * (setup.record_every * setup.sample_period_s)
-    table = setup.sensors.copy()
-    table[M_RUDDER, S_OFFSET] = rudder_offset_rad
     experiment = scenario.experiment()
     command = command_traces(experiment, t)[0] / DEG_PER_RAD
-    reading = DEG_PER_RAD * read_series(command, table, M_RUDDER)
-    return reading_figures(experiment, t, reading)
+
+    def figures(rudder_offset_rad: float) -> dict:
+        table = setup.sensors.copy()
+        table[M_RUDDER, S_OFFSET] = rudder_offset_rad
+        reading = DEG_PER_RAD * read_series(command, table, M_RUDDER)
+        return reading_figures(experiment, t, reading)
+
+    return figures
 
 
 def run_tables(
@@ -186,7 +196,8 @@ def floors(tables: dict, settings: dict[str, tuple[str, ...]] | None = None) -> 
         nominal = load_scenario(scenario, settings=list((settings or {}).get(scenario, ())))
         mine = table[table["label"] == HYBRID_LABEL].sort_values(SAMPLE)
         offsets = mine[offset_key("rudder")].to_numpy(dtype=float)
-        out[scenario] = [floor_figures(nominal, float(o)) for o in offsets]
+        read = floor_reader(nominal)
+        out[scenario] = [read(float(o)) for o in offsets]
     return out
 
 
