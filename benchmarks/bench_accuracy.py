@@ -47,7 +47,9 @@ DOCS = ROOT / "docs" / "model.md"
 BLOCK = "accuracy-contract"
 WINDOW_S = 0.05
 QUICK_S = 0.02
-SUBSTEPS = (2, 3, 4, 5, 6, 9, 10, 11, 20)
+SUBSTEPS = (2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 20)
+# scenarios that ship one step between them: the cheapest that keeps the contract on all
+SHARED = (("bench-step", "bench-sine"),)
 
 
 def worst(errors: dict, sensed: bool) -> list:
@@ -148,7 +150,41 @@ def render(results: dict) -> str:
                 f"| {name} | {label} | " + " | ".join(cells) + f" | {where} (n = {n}) | "
                 f"{order} | {row['cheapest']} |"
             )
+    lines += ["", shipped_line(results)]
     return "\n".join([*lines, ""])
+
+
+def scenario_cheapest(sets: dict) -> int | None:
+    """The fewest sub-steps that keep the contract, with one more and one fewer, for every
+    controller set of a scenario (None: a set keeps it at no measured count)."""
+    counts = [row["cheapest"] for row in sets.values()]
+    return None if None in counts else max(counts)
+
+
+def due_count(results: dict, name: str) -> int | None:
+    """The count scenario ``name`` should ship: the cheapest that keeps the contract for all
+    its sets, or for all the sets of every scenario it shares its step with (SHARED)."""
+    group = next((g for g in SHARED if name in g), (name,))
+    counts = [scenario_cheapest(results["scenarios"][member]) for member in group]
+    return None if None in counts else max(counts)
+
+
+def shipped_line(results: dict) -> str:
+    """Each scenario's shipped count beside the cheapest that keeps the contract for all its
+    sets, where the two differ."""
+    cells = []
+    for name, sets in results["scenarios"].items():
+        shipped = {row["shipped"] for row in sets.values()}.pop()
+        cheapest = scenario_cheapest(sets)
+        differs = "" if shipped == cheapest else f" (its own cheapest {cheapest})"
+        cells.append(f"{name} {shipped}{differs}")
+    shared = "; ".join(" and ".join(group) for group in SHARED)
+    return (
+        "Shipped sub-steps a tick: each scenario's cheapest count that keeps the contract with "
+        f"one more and one fewer for all its sets, and one count for {shared}, the judged "
+        "bench experiments, so that the computation delay's prior draws whole sub-steps on "
+        "both: " + ", ".join(cells) + "."
+    )
 
 
 def main() -> int:

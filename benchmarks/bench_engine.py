@@ -14,8 +14,9 @@ Reference: the same 0.05 s of speed-step on scipy Radau (rtol 1e-10) against the
 Reproduce: three fresh ``emasim reproduce`` processes, every paper experiment and the report;
 the median.
 Tick split (``tick_split``): speed-step and bench-step at 10, 20 and 40 RK4 sub-steps a
-control tick, interleaved, best of 3 each; a straight line through the three splits a tick's time
-into its own work and the plant's sub-steps.
+control tick, interleaved, best of 3 each; a straight line through the three splits a tick's
+time into its own work and the plant's sub-steps, evaluated at the shipped count (fewer
+sub-steps give too short a lever: at 4, 8 and 16 the bench's intercept came out negative).
 Peak memory: a fresh process simulates 1 ms of speed-sine (it has imported emasim and loaded
 the compiled code: the baseline), then 100 s of it, and prints its peak RSS (``ru_maxrss``)
 after each, with the bytes its trace would take in memory (rows x columns x 8; a trace larger
@@ -56,6 +57,7 @@ and docs/speed.md's table says so.
 import argparse
 import datetime
 import json
+import math
 import os
 import platform
 import statistics
@@ -90,7 +92,7 @@ MAT_S = 900.0  # speed-sine's 29 columns at 10 kHz: 2.09 GB, under a MAT-file va
 QUICK_MEMORY_S = 1.0
 BASELINE_S = 1e-3
 SPLIT_SCENARIOS = ("speed-step", "bench-step")  # tick_split: the lumped plant and the bench
-SPLIT_SUBSTEPS = (10, 20, 40)  # the shipped 10 sub-steps a tick, and 2 and 4 times as many
+SPLIT_SUBSTEPS = (10, 20, 40)  # a tick's sub-steps: a lever long enough for the line's intercept
 
 QUICK_STARTUP = ("help", "input_error")
 
@@ -144,6 +146,40 @@ def real_time_factor(scenario, runs: int, duration_s: float | None) -> float:
         setup = setup.with_(duration_s=duration_s)
     simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
     return best_of(runs, lambda: simulate(setup)) / setup.duration_s
+
+
+BEFORE_STEP_S = 1e-5  # ten sub-steps a tick: every scenario's step until 2026-12-07
+SCHEME_SCENARIOS = ("speed-step", "bench-step", "bench-sine", "cosim-step")
+SCHEME_S = 2.0  # simulated by each run of scheme_speedup
+
+
+def scheme_speedup(runs: int = 5, duration_s: float = SCHEME_S) -> dict:
+    """What the shipped step bought, free of the machine's drift between days: each of
+    SCHEME_SCENARIOS (its RTF table's controllers) at its shipped step and at BEFORE_STEP_S,
+    ``runs`` rounds interleaved in one process, the best of each. name -> the simulated
+    seconds, the sub-steps, both RTFs and their ratio."""
+    out = {}
+    for name in SCHEME_SCENARIOS:
+        shipped = load_scenario(name).setup().with_(duration_s=duration_s)
+        before = load_scenario(name, settings=[f"solver.step_s={BEFORE_STEP_S!r}"]).setup()
+        before = before.with_(duration_s=duration_s)
+        for setup in (shipped, before):
+            simulate(setup.with_(duration_s=setup.sample_period_s * 10))  # load compiled code
+        best = {"shipped": math.inf, "before": math.inf}
+        for _ in range(runs):
+            for key, setup in (("shipped", shipped), ("before", before)):
+                start = time.perf_counter()
+                simulate(setup)
+                best[key] = min(best[key], (time.perf_counter() - start) / duration_s)
+        out[name] = {
+            "simulated_s": duration_s,
+            "substeps": shipped.substeps,
+            "before_substeps": before.substeps,
+            "rtf": best["shipped"],
+            "before_rtf": best["before"],
+            "speedup": best["before"] / best["shipped"],
+        }
+    return out
 
 
 def real_time_factors(runs: int = 3, duration_s: float | None = None) -> dict:
@@ -241,11 +277,11 @@ def tick_split(
 ) -> dict:
     """Where a control tick's time goes: each scenario (its RTF table's controllers) run with
     each of ``substeps`` RK4 sub-steps a tick (``solver.step_s`` = Ts / n, nothing else
-    changed), ``runs`` rounds interleaved, the best of each; a least-squares line through them,
-    RTF(n) = (tick + n sub_step) / Ts, splits the time into the tick's own work (sensors,
-    controllers, drive limits, recording) and the plant's sub-steps (four right-hand sides
-    and the bristle's exact steps each). name -> the seconds of each and the shares at the
-    shipped sub-step."""
+    changed), ``runs`` rounds interleaved, the best of each; a least-squares
+    line through them, RTF(n) = (tick + n sub_step) / Ts, splits the time into the tick's
+    own work (sensors, controllers, drive limits, recording) and the plant's sub-steps (four
+    right-hand sides and the bristle's exact steps each). name -> the seconds of each and the
+    shares at the shipped sub-step."""
     out = {}
     for name in names:
         base = load_scenario(name)
@@ -398,6 +434,7 @@ def quick_results() -> dict:
     results["controller_real_time_factor"] = controller_real_time_factors(1, QUICK_S)
     results["reference"] = reference_speedup(QUICK_REFERENCE_S)
     results["tick_split"] = tick_split(1, QUICK_S)
+    results["scheme_speedup"] = scheme_speedup(1, QUICK_S)
     results["cli_real_time_factor"] = cli_real_time_factors(1, QUICK_S, ("speed-step",))
     results["startup_s"] = startup_seconds(QUICK_STARTUP, runs=1)
     results["peak_memory"] = memory_figures((QUICK_MEMORY_S,))
@@ -431,6 +468,10 @@ def full_results() -> dict:
 KEPT = ("peers",)  # results.json's sections that another benchmark measures (bench_peers.py)
 
 SECTIONS = {  # the full run's figures that --update re-measures alone
+    "real_time_factor": real_time_factors,
+    "scenario_duration_s": lambda: scenario_runs()[0],
+    "scenario_controllers": lambda: scenario_runs()[1],
+    "controller_real_time_factor": controller_real_time_factors,
     "startup_s": warm_startup_seconds,
     "cli_real_time_factor": cli_real_time_factors,
     "reproduce_s": reproduce_seconds,
@@ -441,6 +482,7 @@ SECTIONS = {  # the full run's figures that --update re-measures alone
     "monte_carlo": lambda: bench_study.monte_carlo_seconds(bench_study.MC_RUNS),
     "reference": reference_speedup,
     "tick_split": tick_split,
+    "scheme_speedup": scheme_speedup,
 }
 
 
@@ -519,6 +561,11 @@ def report(results: dict) -> None:
             f"{name}: a tick's own work {split['tick_s'] * 1e9:.0f} ns, a sub-step "
             f"{split['sub_step_s'] * 1e9:.0f} ns; at {split['shipped_substeps']} sub-steps the "
             f"plant's RTF {split['plant_rtf']:.4f} of {split['rtf']:.4f}"
+        )
+    for name, pair in results.get("scheme_speedup", {}).items():
+        print(
+            f"{name}: at {pair['substeps']} sub-steps RTF {pair['rtf']:.4f}, at "
+            f"{pair['before_substeps']} {pair['before_rtf']:.4f}: {pair['speedup']:.2f}x"
         )
     memory = results["peak_memory"]
     print(f"peak RSS, import + 1 ms run: {memory['baseline']['peak_rss_bytes'] / 1e6:.0f} MB")

@@ -24,6 +24,9 @@ from emasim.page_blocks import write_block
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results.json"
+# the figures before the last change of the shipped scheme, shown beside today's: the same
+# benchmark's results.json of then, with a "label" that says what it measured
+BEFORE = ROOT / "benchmarks" / "results-before.json"
 PAGE = ROOT / "docs" / "speed.md"
 BLOCK = "speed-figures"
 MISSING = "not measured"
@@ -96,7 +99,7 @@ def rtf(r: float) -> str:
     return f"RTF {sig(r, 3)}, {sig(1 / r, 2)}× faster than real time"
 
 
-def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
+def rtf_rows(results: dict, before: dict | None = None) -> list[tuple[str, str, str]]:
     rows = []
     durations = results["scenario_duration_s"]
     controllers = results["scenario_controllers"]
@@ -126,7 +129,7 @@ def rtf_rows(results: dict) -> list[tuple[str, str, str]]:
             f"{sig(controllers[slowest], 3)} (`{slowest}`)",
         )
     )
-    rows += split_rows(results)
+    rows += scheme_rows(results, before) + split_rows(results)
     ref = results["reference"]
     rows.append(
         (
@@ -150,14 +153,40 @@ def split_rows(results: dict) -> list[tuple[str, str, str]]:
         rows.append(
             (
                 f"`{name}`: a control tick's time split into its own work (sensors, controllers, "
-                f"drive limits, recording) and the plant's {split['shipped_substeps']} RK4 "
-                "sub-steps (four right-hand sides each)",
+                "drive limits, recording) and the plant's shipped RK4 sub-steps (four "
+                "right-hand sides each)",
                 f"a straight line through the RTF at {counts} sub-steps a tick (`solver.step_s`), "
                 "best of 3 each, interleaved, in one process",
-                f"the sub-steps alone RTF {sig(split['plant_rtf'], 3)} of {sig(split['rtf'], 3)} "
+                f"at {split['shipped_substeps']} sub-steps a tick, the sub-steps alone RTF "
+                f"{sig(split['plant_rtf'], 3)} of {sig(split['rtf'], 3)} "
                 f"({100 * share:.0f} %): {sig(1e9 * split['sub_step_s'], 3)} ns a sub-step, "
                 f"{sig(1e9 * split['tick_s'], 3)} ns a tick's own work; were that work free, "
                 f"{sig(1 / share, 3)}× faster at most",
+            )
+        )
+    return rows
+
+
+def scheme_rows(results: dict, before: dict | None = None) -> list[tuple[str, str, str]]:
+    """What the shipped step bought (bench_engine.scheme_speedup): each scenario at its
+    shipped sub-steps against the same run at ten, interleaved, measured the same day; with
+    ``before``, the RTF the same scenario had then at ten, which shows the machine's drift."""
+    rows = []
+    then = (before or {}).get("real_time_factor", {})
+    for name, pair in results.get("scheme_speedup", {}).items():
+        drift = (
+            f" (at ten sub-steps on {before['date']}: RTF {sig(then[name], 3)}, this "
+            "machine's speed that day)"
+            if name in then
+            else ""
+        )
+        rows.append(
+            (
+                f"`{name}` at its shipped {pair['substeps']} RK4 sub-steps a tick against "
+                f"{pair['before_substeps']}, {given(pair['simulated_s'])} simulated",
+                "best of 5 runs each, interleaved, in one process",
+                f"RTF {sig(pair['rtf'], 3)} against {sig(pair['before_rtf'], 3)}: "
+                f"{sig(pair['speedup'], 3)}× faster{drift}",
             )
         )
     return rows
@@ -360,8 +389,32 @@ def fmu_rows(results: dict) -> list[tuple[str, str, str]]:
     return [(what, how, figure)]
 
 
-def render(results: dict) -> str:
-    """The Markdown between the page's markers (emasim.page_blocks' rule)."""
+def beside(rows: list, before_rows: list, label: str) -> list[tuple[str, str, str]]:
+    """Each row's figure with the figure that the row of the same wording had before (its
+    measurement ``label``), where there was one and it differs."""
+    old = {what: figure for what, _, figure in before_rows}
+    out = []
+    for what, how, figure in rows:
+        was = old.get(what)
+        if was is not None and was != figure and MISSING not in (was, figure):
+            figure = f"{figure} (before, {label}: {was})"
+        out.append((what, how, figure))
+    return out
+
+
+def table_rows(results: dict, before: dict | None = None) -> list[tuple[str, str, str]]:
+    rows = rtf_rows(results, before) + peer_rows(results) + process_rows(results)
+    return rows + memory_rows(results) + fmu_rows(results)
+
+
+def load_before() -> dict | None:
+    """The stored figures of before (BEFORE), or None."""
+    return json.loads(BEFORE.read_text()) if BEFORE.exists() else None
+
+
+def render(results: dict, before: dict | None = None) -> str:
+    """The Markdown between the page's markers (emasim.page_blocks' rule); with ``before``,
+    each changed figure beside its old value."""
     lines = []
     if results.get("quick"):
         lines += [
@@ -379,14 +432,16 @@ def render(results: dict) -> str:
         "| what | how | measured |",
         "|---|---|---|",
     ]
-    rows = rtf_rows(results) + peer_rows(results) + process_rows(results)
-    rows += memory_rows(results) + fmu_rows(results)
+    rows = table_rows(results, before)
+    if before is not None:
+        rows = beside(rows, table_rows(before), before["label"])
+        lines[-2:-2] = [f"Beside a changed figure: its value before, {before['label']}.", ""]
     lines += [f"| {what} | {how} | {figure} |" for what, how, figure in rows]
     return "\n".join(lines)
 
 
 def write_page(results: dict, path: Path = PAGE) -> None:
-    write_block(path, BLOCK, render(results))
+    write_block(path, BLOCK, render(results, load_before()))
 
 
 def main() -> None:

@@ -70,8 +70,14 @@ def number(x: float) -> str:
     return f"{float(f'{x:.2g}'):g}"
 
 
+def whole(percentage: float) -> str:
+    """|percentage| in whole percent, one decimal below 1 % (never a bare '0' for a change)."""
+    magnitude = abs(percentage)
+    return f"{magnitude:.0f}" if magnitude >= 0.95 or magnitude == 0 else f"{magnitude:.1f}"
+
+
 def percent(x: float) -> str:
-    return f"{'−' if x > 0 else '+'}{abs(100 * x):.0f} %"
+    return f"{'−' if x > 0 else '+'}{whole(100 * x)} %"
 
 
 INDUSTRIAL = "industrial PID"  # the further PID variant of every bench experiment
@@ -147,9 +153,10 @@ def render(
 
 
 def signed(x: float | None) -> str:
-    """A whole percentage with its sign, the minus as in the headline table (−91 %, +17 %);
+    """A whole percentage with its sign, the minus as in the headline table (−91 %, +17 %;
+    one decimal below 1 %: −0.4 %);
     None (tables.json's null for an infinite change: PID's figure 0, the hybrid's not) as +∞."""
-    return "+∞" if x is None else f"{x:+.0f}".replace("-", "−")
+    return "+∞" if x is None else f"{'−' if x < 0 else '+'}{whole(x)}"
 
 
 def negated(x: float | None) -> float | None:

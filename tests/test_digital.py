@@ -52,7 +52,8 @@ from emasim.scenarios.loader import load_scenario
 from emasim.sim.engine import simulate
 
 TS = 1e-4  # s: the shipped scenarios' controller sample period
-H = 1e-5  # s: their sub-step (10 per tick)
+H = 1e-5  # s: a sub-step of 10 per tick, set here (the shipped ones are coarser): a fine
+# grid of delays to test on
 
 # --- the computation delay ------------------------------------------------------------------
 
@@ -91,6 +92,7 @@ def open_loop_run(frequency_Hz: float, delay_substeps: int):
             "load.motor_torque_Nm=[]",
             f'reference.speed_rpm=[{{type="sine", amplitude={AMPLITUDE_A / RPM}, '
             f"frequency_Hz={frequency_Hz}}}]",
+            f"solver.step_s={H}",
             f"loop.computation_delay_s={delay_substeps * H}",
         ],
     )
@@ -190,7 +192,7 @@ def test_a_delay_off_the_sub_step_grid_or_beyond_a_tick_is_refused(delay_s, word
 def test_a_delay_on_the_grid_is_a_whole_number_of_sub_steps():
     for delay_s, substeps in ((0.0, 0), (3e-5, 3), (7e-5, 7), (1e-4, 10)):
         setup = load_scenario(
-            "speed-step", settings=[f"loop.computation_delay_s={delay_s}"]
+            "speed-step", settings=[f"solver.step_s={H}", f"loop.computation_delay_s={delay_s}"]
         ).setup()
         assert setup.delay_substeps == substeps
 

@@ -19,7 +19,12 @@ traces differed from the stored ones from their first row on (the rod command at
 bit for bit. The rudder table's squares went through np.float_power, which numpy computes by
 the processor's SIMD (SVML on AVX-512); they now go through libm's pow on every machine
 (emasim.plant.elements.linkage), which gives this machine's values unchanged. bench-identify is
-fingerprinted since.
+fingerprinted since. Stored again on 2026-12-07 when each shipped scenario moved to the
+cheapest step that keeps the accuracy contract (three sub-steps a tick, four on bench-step and
+bench-sine, bench-identify's ten unchanged): position-step's, speed-sine's and speed-step's
+traces moved, on purpose (the bench's are fingerprinted as the idealised bench they were, at
+its own step, and did not); the evidence is the plant replay (benchmarks/accuracy.json) and
+the distribution equivalence at h/3 (benchmarks/equivalence.json), stored in the same commit.
 
 The end stops (emasim.plant.elements.stops) came after the fingerprints: a run that stays inside the
 stroke must be unchanged, and one that leaves it is compared up to its last stored row before

@@ -110,3 +110,16 @@ def test_the_docs_table_is_what_the_benchmark_measured():
         for row in sets.values():
             counts = {int(n): c for n, c in row["counts"].items()}
             assert row["cheapest"] == bench_accuracy.cheapest(counts)
+
+
+def test_each_scenario_ships_the_cheapest_count_that_keeps_the_contract():
+    """The sub-step count a scenario ships (its solver.step_s) is the one the stored
+    measurement ran at, and the fewest that keeps the contract, with one more and one fewer,
+    for every controller set of the scenario (of the scenarios that share one step, for all
+    their sets): no cheaper count was shown to keep it, and no dearer one is paid for
+    nothing."""
+    results = json.loads(bench_accuracy.RESULTS.read_text())
+    for name, sets in results["scenarios"].items():
+        shipped = load_scenario(name).solver.substeps
+        assert {row["shipped"] for row in sets.values()} == {shipped}, name
+        assert bench_accuracy.due_count(results, name) == shipped, name

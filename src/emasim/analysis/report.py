@@ -341,7 +341,10 @@ def run_warnings(metrics: dict) -> list[str]:
     return lines
 
 
-LIMIT_TOLERANCE = 1e-3  # beyond a limit by more than 0.1 %: above a float's rounding, not a choice
+# beyond a limit by more than 0.2 %: more than the integration adds where the drive holds it
+# (its current chopping, checked once a sub-step, holds the current within 0.10 % of its limit
+# at the shipped three sub-steps a tick, 0.03 % at ten: tests/test_limits.py), not a choice
+LIMIT_TOLERANCE = 2e-3
 
 
 def limits_crossed(result) -> dict:

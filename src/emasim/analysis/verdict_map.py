@@ -136,7 +136,10 @@ def flip_lines(vmap: dict) -> list[str]:
 
 
 def _margin(value: float) -> str:
-    return f"{value:+.0f} %" if math.isfinite(value) else "-inf"
+    """'+56 %', one decimal below 1 % ('+0.4 %': never a bare 0 for a margin), '-inf'."""
+    if not math.isfinite(value):
+        return "-inf"
+    return f"{value:+.0f} %" if abs(value) >= 0.95 or value == 0 else f"{value:+.1f} %"
 
 
 def markdown(vmap: dict, figure: tuple[str, str] | None = None) -> list[str]:

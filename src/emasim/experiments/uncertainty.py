@@ -110,10 +110,11 @@ ROWS = (
     ),
     Uncertain(
         "computation delay",
-        "loop.computation_delay_s=*discrete(0.5, 1, 6)",
+        "loop.computation_delay_s=*discrete(0.5, 1, 3)",
         "half to one control period (50 to 100 us; nominal one period): the drive's "
         "computation time is not stated; the schema takes a whole number of solver steps, at "
-        "most one period, so it is one of 5 to 10 steps of 10 us, each equally likely",
+        "most one period, so it is one of 2 to 4 steps of 25 us (the bench's h), each equally "
+        "likely",
     ),
     Uncertain(
         "speed filter",
