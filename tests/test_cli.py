@@ -277,6 +277,118 @@ def test_an_unexpected_failure_in_a_run_is_one_line(tmp_path):
     assert "Traceback" not in printed and "Compute Failed" not in printed
 
 
+SIGNALLED_RUN = """
+import os, signal, sys, time
+from emasim.cli import app
+from emasim.experiments import batch
+
+SIGNAL = getattr(signal, sys.argv[2])
+
+def signalled(*args, **kwargs):
+    os.kill(os.getpid(), SIGNAL)
+    time.sleep(60)
+
+batch.run_scenario = signalled
+sys.argv = ["emasim", "run", "speed-step", "-c", "speed=pi", "--no-plot", "--out", sys.argv[1]]
+app()
+"""
+
+
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143)])
+@pytest.mark.parametrize("into", ["pipe", "file"])
+def test_a_signal_during_a_run_says_interrupted_on_a_pipe_or_a_file(tmp_path, name, code, into):
+    """A Ctrl-C (SIGINT) or a SIGTERM while a run simulates ends with the one line
+    ``error: interrupted`` on stderr, whether it is a terminal, a pipe or a file, exit 130 or
+    143 (128 + the signal), and leaves no result folder behind. In a process of its own, the
+    signal sent by the run itself once it has started."""
+    out = tmp_path / "r"
+    command = [sys.executable, "-c", SIGNALLED_RUN, str(out), name]
+    if into == "pipe":
+        done = subprocess.run(command, capture_output=True, text=True, timeout=HANG_GUARD_S)
+        printed = done.stderr
+    else:
+        with open(tmp_path / "stderr.txt", "w") as stderr:
+            done = subprocess.run(command, stderr=stderr, timeout=HANG_GUARD_S)
+        printed = (tmp_path / "stderr.txt").read_text()
+    assert done.returncode == code, printed
+    assert printed.strip().splitlines()[-1] == "error: interrupted", printed
+    assert "Traceback" not in printed
+    assert not out.exists()
+
+
+SIGNALLED_IMPORT = """
+import os, signal, sys, time
+
+SIGNAL = getattr(signal, sys.argv[1])
+
+
+class SignalOnTyper:
+    def find_spec(self, name, path, target=None):
+        if name == "typer":
+            os.kill(os.getpid(), SIGNAL)
+            time.sleep(60)
+        return None
+
+
+sys.meta_path.insert(0, SignalOnTyper())
+sys.argv = ["emasim", "list"]
+from emasim.__main__ import main
+main()
+"""
+
+
+@pytest.mark.parametrize(("name", "code"), [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_while_the_command_line_imports_says_interrupted(name, code):
+    """The command's imports take a second or more: a Ctrl-C or a SIGTERM then (here sent
+    when typer is imported) ends with the same one line as during a command, no traceback."""
+    done = subprocess.run(
+        [sys.executable, "-c", SIGNALLED_IMPORT, name],
+        capture_output=True,
+        text=True,
+        timeout=HANG_GUARD_S,
+    )
+    assert done.returncode == code, done.stderr
+    assert done.stderr == "error: interrupted\n"
+
+
+SIGNALLED_CLUSTER_START = """
+import asyncio, os, signal, sys
+
+if __name__ == "__main__":  # the cluster's worker processes import this file again
+    import distributed.nanny
+
+    started = distributed.nanny.Nanny.start_unsafe
+
+    async def signalled(self):
+        os.kill(os.getpid(), signal.SIGTERM)
+        await asyncio.sleep(0.5)
+        return await started(self)
+
+    distributed.nanny.Nanny.start_unsafe = signalled
+    sys.argv = ["emasim", "study", "speed-step", "--vary",
+                "plant.motor.inertia_kgm2=*uniform(0.9, 1.1)", "--runs", "2",
+                "--set", "duration_s=0.01", "--out", sys.argv[1]]
+    from emasim.__main__ import main
+    main()
+"""
+
+
+def test_a_signal_while_the_cluster_starts_says_interrupted_and_nothing_more(tmp_path):
+    """A SIGTERM (or Ctrl-C) while a study's Dask cluster starts its workers: the one line
+    ``interrupted``, exit 143, and not Dask's traceback from closing, at exit, a cluster whose
+    workers never started (AssertionError: Status.init)."""
+    script = tmp_path / "interrupted_study.py"
+    script.write_text(SIGNALLED_CLUSTER_START)
+    done = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "study")],
+        capture_output=True,
+        text=True,
+        timeout=HANG_GUARD_S,
+    )
+    assert done.returncode == 143, done.stderr
+    assert done.stderr.strip() == "error: interrupted"
+
+
 def test_run_leaves_the_cycle_collector_as_it_found_it(tmp_path, monkeypatch):
     """`run` turns Python's cycle collector off while it runs (a bounded job) and on again
     after, as it was: a program or a test that runs it in its own process keeps its collector,

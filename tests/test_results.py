@@ -1,5 +1,6 @@
 """emasim runs list / prune: only emasim's results, only their own files, a dry run by default."""
 
+import errno
 import json
 import os
 import time
@@ -92,3 +93,23 @@ def test_bad_options_are_one_line(tmp_path):
         out = runner.invoke(app, args)
         assert out.exit_code == 2 and needle in out.output, out.output
     assert parse_age("12h") == 43200 and find(tmp_path) == []
+
+
+def test_prune_on_a_read_only_file_system_says_it_cannot_remove(tmp_path, monkeypatch):
+    """Where emasim's own files cannot be removed (a read-only file system), prune says so in
+    one line a result, keeps going, and never blames its own marker as a user's file."""
+    root = tmp_path / "runs"
+    old = result_at(root / "speed-step" / "old", 10 * 86400)
+    unlink = os.unlink
+
+    def read_only(path, *args, **kwargs):
+        if str(path).startswith(str(root)):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return unlink(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "unlink", read_only)
+    done = CliRunner().invoke(app, ["runs", "prune", str(root), "--older-than", "7d", "--yes"])
+    assert done.exit_code == 0, done.output
+    assert "cannot remove: read-only file system" in done.output
+    assert "did not write" not in done.output and "removed speed-step" not in done.output
+    assert (old / ".emasim-result").exists()

@@ -7,11 +7,22 @@ compiled sampled-data engine (:mod:`emasim.sim`), the paper's experiments
 (:mod:`emasim.scenarios`) and the metrics (:mod:`emasim.analysis`).
 """
 
+from .errors import EmasimError, EmasimWarning, InputError, PhysicalLimitWarning
 from .numba_cache import configure as _configure_numba_cache
 
 NUMBA_CACHE_DIR = _configure_numba_cache()  # keyed by the source: never stale (numba_cache.py)
 # the public names, the ones loaded on first use too
-__all__ = ["NUMBA_CACHE_DIR", "__version__", "identify", "linearize", "run"]
+__all__ = [
+    "NUMBA_CACHE_DIR",
+    "EmasimError",
+    "EmasimWarning",
+    "InputError",
+    "PhysicalLimitWarning",
+    "__version__",
+    "identify",
+    "linearize",
+    "run",
+]
 
 
 def __getattr__(name: str):

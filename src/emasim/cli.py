@@ -2,9 +2,11 @@
 
 Bad input ends with one line naming the field and the allowed range, exit code 2, and nothing
 written. No Python traceback reaches the user: a usage error is one line (exit 2), an
-interruption says so (exit 130), and an unexpected failure is one line naming it (exit 1; set
-``EMASIM_TRACEBACK=1`` to see the traceback). Output never replaces anything emasim did not
-write (:mod:`emasim.output`); replacing an earlier emasim result needs ``--force``.
+interruption says so (``error: interrupted``; exit 130 for a Ctrl-C or SIGINT, 143 for a
+SIGTERM, which unwinds the program as a Ctrl-C does), and an unexpected failure is one line
+naming it (exit 1; set ``EMASIM_TRACEBACK=1`` to see the traceback). Output never replaces
+anything emasim did not write (:mod:`emasim.output`); replacing an earlier emasim result needs
+``--force``.
 """
 
 import errno
@@ -12,8 +14,11 @@ import functools
 import gc
 import logging
 import os
+import signal
 import sys
+import threading
 import time
+import warnings
 from pathlib import Path
 from typing import Annotated
 
@@ -26,7 +31,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 from typer.core import TyperGroup
 
-from .errors import EmasimError
+from .errors import EmasimError, PhysicalLimitWarning
 from .search_rules import Budget  # small: math and dataclasses only
 
 console = Console()
@@ -56,21 +61,49 @@ def _global_flags_first(args: list[str] | None) -> list[str]:
     return flags + [w for w in words[:end] if w not in GLOBAL_FLAGS] + words[end:]
 
 
+INTERRUPTED = 128 + signal.SIGINT  # the exit code of a Ctrl-C (typer returns it)
+TERMINATED = 128 + signal.SIGTERM
+_SIGTERM = threading.Event()  # set by _on_sigterm while a command runs
+
+
+def _on_sigterm(signum, frame, owner: int = os.getpid()) -> None:
+    """SIGTERM's handler while a command runs (_OneLineErrors.main): a KeyboardInterrupt
+    raised where the program stands, so that it unwinds as from a Ctrl-C (every file being
+    written removed, emasim.output) and says ``interrupted``. In a process forked from the
+    command's, SIGTERM keeps its default meaning, an immediate end."""
+    if os.getpid() != owner:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return
+    _SIGTERM.set()
+    raise KeyboardInterrupt
+
+
 class _OneLineErrors(TyperGroup):
     """The command group, with every failure reduced to one line and a meaningful exit code."""
 
     def main(self, args=None, *rest, **kwargs):
         kwargs["standalone_mode"] = False
+        handles = threading.current_thread() is threading.main_thread()
+        before = signal.signal(signal.SIGTERM, _on_sigterm) if handles else None
+        _SIGTERM.clear()
         try:
+            # typer returns INTERRUPTED for a KeyboardInterrupt in a command; one raised
+            # outside the command comes here
             code = super().main(_global_flags_first(args), *rest, **kwargs)
         except EmasimError as err:
             _say_error(err)
             code = 2
         except (typer.Abort, KeyboardInterrupt):
-            _say_error("interrupted")
-            code = 130
+            code = INTERRUPTED
         except Exception as err:
             code = _usage_or_internal_error(err)
+        finally:
+            if handles:
+                signal.signal(signal.SIGTERM, before)
+        if code == INTERRUPTED:
+            _say_error("interrupted")
+            code = TERMINATED if _SIGTERM.is_set() else INTERRUPTED
         sys.exit(code if isinstance(code, int) else 0)
 
 
@@ -462,7 +495,9 @@ def run(
             _notice_compile()
             progress = _LazyProgress(f"simulating {sc.name}")
             try:
-                result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
+                with warnings.catch_warnings():  # printed as warning lines (_print_warnings)
+                    warnings.simplefilter("ignore", PhysicalLimitWarning)
+                    result = run_any(sc, progress=progress, trust_fmu=trust_fmu)
                 by_label = result.metrics if sc.compare else {result.meta["label"]: result.metrics}
             finally:
                 progress.close()
@@ -1194,7 +1229,14 @@ def runs_prune(
                 highlight=False,
             )
             continue
-        kept = remove(result.folder)
+        try:
+            kept = remove(result.folder)
+        except OSError as err:
+            reason = err.strerror or str(err)
+            log.warning(
+                f"{_under(result.folder, root)}: cannot remove: {reason[:1].lower()}{reason[1:]}"
+            )
+            continue
         if kept:
             log.warning(
                 f"{_under(result.folder, root)}: kept, it holds files emasim did not write "

@@ -1,4 +1,7 @@
-"""Errors meant for the user: the command line prints their message as one line, exit code 2."""
+"""Errors and warnings meant for the user: the command line prints an error's message as one
+line, exit code 2, and a warning as one ``warning:`` line; from Python they are exceptions and
+``warnings`` of emasim's own categories (``emasim.InputError``, ``emasim.PhysicalLimitWarning``),
+to catch, filter or escalate as any library's."""
 
 
 class EmasimError(Exception):
@@ -25,3 +28,13 @@ class DamagedResult(EmasimError):
 class OutputError(EmasimError):
     """A target cannot be written without losing someone's data, or cannot be written at all
     (emasim.output's rules)."""
+
+
+class EmasimWarning(UserWarning):
+    """Base of emasim's warnings: ``warnings.simplefilter("error", emasim.EmasimWarning)``
+    turns every one into an exception, ``"ignore"`` silences them."""
+
+
+class PhysicalLimitWarning(EmasimWarning):
+    """A run touched a stop or went past a physical limit (rated speed, current, stroke): one
+    warning a line of its meta.json's ``warnings``, prefixed with the controller set's label."""

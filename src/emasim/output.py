@@ -91,14 +91,20 @@ def foreign_files(folder: Path) -> list[str]:
     return sorted(name for name, own in _owned(Path(folder)).items() if not own)
 
 
-def remove_own(folder: Path) -> bool:
+def remove_own(folder: Path, failures: list[OSError] | None = None) -> bool:
     """Delete emasim's files under the real folder ``folder`` (a link itself, never its target),
-    its journal, marker and emptied folders; True when ``folder`` is gone."""
+    its journal, marker and emptied folders; True when ``folder`` is gone. An own file that
+    could not be removed (a read-only file system, a permission) is added to ``failures``."""
     if not _real_folder(folder):
         return False
     for name in [name for name, own in _owned(folder).items() if own] + [*_records(folder)]:
-        with contextlib.suppress(OSError):
+        try:
             os.unlink(folder / name)
+        except FileNotFoundError:
+            pass
+        except OSError as err:
+            if failures is not None:
+                failures.append(err)
     for root, _, _ in os.walk(folder, topdown=False):  # the deepest first, ``folder`` last
         with contextlib.suppress(OSError):
             os.rmdir(root)  # an empty folder only

@@ -103,7 +103,8 @@ def choose(results: list[Found], older_than_s: float | None, keep: int | None,
 
 def remove(folder: Path) -> list[str]:
     """Remove the result ``folder`` as the module docstring says; the files that kept it (or
-    a nested result) in place, [] when it is gone."""
+    a nested result) in place, [] when it is gone. An OSError (a read-only file system, a
+    permission) when one of emasim's own files cannot be removed."""
     for here, dirs, _ in os.walk(folder, topdown=True):
         path = Path(here)
         if path != folder and is_emasim_folder(path):
@@ -113,5 +114,8 @@ def remove(folder: Path) -> list[str]:
         kept = foreign_files(folder)
         if kept:
             return kept
-        remove_own(folder)
+        failures: list[OSError] = []
+        remove_own(folder, failures)
+        if failures:
+            raise failures[0]
     return [] if not os.path.lexists(folder) else sorted(os.listdir(folder))

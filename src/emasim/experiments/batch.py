@@ -16,18 +16,20 @@ emasim.experiments.study.run_study); their results are read back by those names,
 position in a tuple.
 """
 
+import atexit
 import concurrent.futures
 import contextlib
 import logging
 import os
 import socket
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..errors import EmasimError, InputError
+from ..errors import EmasimError, InputError, PhysicalLimitWarning
 from ..sim.cosim import check_fmu_trust
 from ..sim.engine import load_compiled as load_engine
 from ..sim.result import Comparison, Result
@@ -46,6 +48,27 @@ HANDSHAKE_TIMEOUT_S = 5  # a Dask scheduler answers its identity in milliseconds
 def workers_available() -> int:
     """The cores this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+
+
+def _close_clusters_quietly() -> None:
+    """Dask's own exit hook (distributed.deploy.spec.close_clusters), its failure kept off the
+    console: a cluster whose start a Ctrl-C or a SIGTERM cut short, its workers not yet
+    started, fails to close there with a 29-line traceback (AssertionError: Status.init) after
+    the command's one ``interrupted`` line. Its worker processes end with this process as
+    always (Dask's workers are daemons)."""
+    from distributed.deploy.spec import close_clusters
+
+    with contextlib.suppress(Exception):
+        close_clusters()
+
+
+def _quiet_exit_hook() -> None:
+    """Put :func:`_close_clusters_quietly` in the place of Dask's exit hook (once)."""
+    from distributed.deploy.spec import close_clusters
+
+    atexit.unregister(close_clusters)
+    atexit.unregister(_close_clusters_quietly)
+    atexit.register(_close_clusters_quietly)
 
 
 @contextlib.contextmanager
@@ -79,6 +102,7 @@ def dask_client(
             yield client
         return
     n = workers or workers_available()
+    _quiet_exit_hook()
     try:
         cluster = LocalCluster(
             processes=processes,
@@ -321,8 +345,22 @@ def run(
     client_or_none("emasim.run: client", client)
     scenario = as_scenario(scenario, label, controllers, settings)
     if scenario.compare:
-        return run_comparison(scenario, progress, trust_fmu, client)
-    return run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)
+        result = run_comparison(scenario, progress, trust_fmu, client)
+    else:
+        result = run_scenario(scenario, progress=progress, trust_fmu=trust_fmu)
+    warn_limits(result)
+    return result
+
+
+def warn_limits(result: Comparison | Result) -> None:
+    """Each line of each run's meta.json ``warnings`` (a stop touched, a physical limit
+    passed) as a :class:`~emasim.errors.PhysicalLimitWarning`, prefixed with its controller
+    set's label, so that a script or a notebook shows it and a user can filter or escalate it
+    (the command line prints the same lines as its own ``warning:`` lines instead)."""
+    records = getattr(result, "results", None) or {result.meta["label"]: result}
+    for label, record in records.items():
+        for line in record.meta.get("warnings", []):
+            warnings.warn(f"{label}: {line}", PhysicalLimitWarning, stacklevel=3)
 
 
 def load_compiled(variants) -> float:
