@@ -111,6 +111,34 @@ def test_bad_traces_and_keys_are_refused_in_one_line(tmp_path, worn):
     refused_in_one_line(["identify", "bench-step", "--data", str(data)], "choose the one")
 
 
+def test_a_rod_reading_in_mm_is_refused_not_identified_on_its_bound(tmp_path, worn, monkeypatch):
+    """With the rod sensor's column in mm the fit stopped 3.4e-7 mm under the backlash's
+    range top (its tolerance is 1e-3) with an interval of ± 206 mm, and was reported as
+    identified (99.9 % off the truth). That stopping point, given back by a stand-in for the
+    optimiser (the real fit takes minutes), is refused in one line."""
+    from emasim.identification import identify as module
+    from emasim.identification.fit import Fit
+
+    data, _ = worn
+    frame = pd.read_parquet(data)
+    mm = tmp_path / "rod-in-mm.parquet"
+    frame.assign(measured_rod_position_m=1e3 * frame.measured_rod_position_m).to_parquet(mm)
+
+    def stopped_on_the_bound(residuals, keys, start, **options):
+        (key,) = keys
+        value = {key.name: key.high - 3.4e-7}
+        return Fit(tuple(keys), value, {key.name: 206.0}, np.eye(1), 0.5, 9, True, "xtol", 1.0)
+
+    monkeypatch.setattr(module, "output_error", stopped_on_the_bound)
+    args = ["identify", "bench-identify", "--data", str(mm), "--fit", bench.BACKLASH]
+    args += ["--out", str(tmp_path / "out")]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2 and len(result.output.strip().splitlines()) == 1, result.output
+    assert "no value identified: the 95 % interval of plant.backlash" in result.output
+    assert "(± 206) is wider than its range (0.01 to 0.6)" in result.output
+    assert "misses rod_position_m by 99.9 %" in result.output
+
+
 def test_the_docs_score_is_what_the_benchmark_measured():
     """docs/calibration.md's block is the benchmark's rendering of fault_identification.json,
     whose score follows from its rows (python benchmarks/bench_fault_identification.py

@@ -46,13 +46,15 @@ class AxisModel:
     def __init__(self, raw: dict, source: str, trace: Trace, scenario: AxisScenario | None = None):
         self.raw, self.source, self.trace = raw, source, trace
         self.scenario = validate_axis(raw, source) if scenario is None else scenario
-        self.motion = idim.bandpass(trace.signals["position_m"], trace.sample_period_s)
         period = self.scenario.loop.sample_period_s
-        if abs(trace.sample_period_s - period) > SAMPLING_TOLERANCE * period:
+        if abs(trace.sample_period_s - period) > SAMPLING_TOLERANCE * period:  # before filtering
             raise InputError(
                 f"--data {trace.path}: sampled every {trace.sample_period_s:.6g} s; the "
-                f"scenario's loop runs every {period:g} s (loop.sample_period_s)"
+                f"scenario's loop runs every {period:g} s (loop.sample_period_s); give the "
+                "time in s"
             )
+        self._check_motion()
+        self.motion = idim.bandpass(trace.signals["position_m"], trace.sample_period_s)
         self.outputs = {
             name: weight
             for name, weight in self.scenario.identify.outputs.items()
@@ -62,6 +64,28 @@ class AxisModel:
             raise InputError(
                 f"--data {trace.path}: none of the outputs the fit compares "
                 f"({', '.join(self.scenario.identify.outputs)}) is in the file"
+            )
+
+    def _check_motion(self) -> None:
+        """Refuse, in one line, a measured position the scenario's axis cannot make: a span
+        beyond its stroke, or a step from one sample to the next faster than its top speed.
+        Positions in mm, or traces joined with a jump at the seam, would otherwise be fitted
+        as a wildly wrong mass and friction, or not simulate at all."""
+        plant, trace = self.scenario.plant, self.trace
+        position = trace.signals["position_m"]
+        span = float(np.ptp(position))
+        if span > plant.stroke_m:
+            raise InputError(
+                f"--data {trace.path}: the position spans {span:.4g} m, beyond the axis's "
+                f"stroke (plant.stroke_m = {plant.stroke_m:g}); give positions in m"
+            )
+        speed = np.abs(np.diff(position)) / trace.sample_period_s
+        at = int(np.argmax(speed))
+        if speed[at] > plant.max_speed_m_s:
+            raise InputError(
+                f"--data {trace.path}: the position moves at {speed[at]:.4g} m/s from sample "
+                f"{at} to {at + 1}, beyond the axis's top speed (plant.max_speed_m_s = "
+                f"{plant.max_speed_m_s:g}): a jump, where traces were joined?"
             )
 
     @classmethod
@@ -103,20 +127,25 @@ class AxisModel:
 
     def simulate(self, scenario: AxisScenario, ideal_reading: bool = False) -> dict:
         """The simulated trace (emasim.sim.axis_loop.COLUMNS) from the measured inputs; with
-        ``ideal_reading`` the encoder is not quantised (module docstring)."""
+        ``ideal_reading`` the encoder is not quantised (module docstring). Values whose
+        fastest mode the loop's sub-step cannot integrate (axis_loop.stable_substeps) are an
+        InputError: a candidate the fit scores as diverged, or values identify names."""
         signals = self.trace.signals
         position = signals["position_m"]
         loop = scenario.loop.loop()
         if ideal_reading:
             loop = replace(loop, resolution_m=0.0)
-        return simulate_axis(
-            scenario.plant,
-            loop,
-            signals["reference_m"],
-            signals.get(INPUTS[1]),
-            position0=float(position[0]),
-            velocity0=float(position[1] - position[0]) / self.trace.sample_period_s,
-        )
+        try:
+            return simulate_axis(
+                scenario.plant,
+                loop,
+                signals["reference_m"],
+                signals.get(INPUTS[1]),
+                position0=float(position[0]),
+                velocity0=float(position[1] - position[0]) / self.trace.sample_period_s,
+            )
+        except ValueError as err:
+            raise InputError(str(err)) from None
 
     def compared(self, simulated: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The simulated counterparts of the measured outputs, by signal."""

@@ -11,7 +11,11 @@ the measured outputs (or of features of them: emasim.identification.bench_model)
 by scipy.optimize.least_squares (trust-region reflective within the ranges, the Jacobian by
 forward differences of relative step ``DIFF_STEP``, its columns simulated side by side where a
 model allows). ``starts`` > 1 adds starts drawn in the ranges (a scrambled Sobol sequence,
-seeded) and keeps the best: a multi-start for a multimodal cost. At the optimum, the
+seeded) and keeps the best: a multi-start for a multimodal cost. It stops when a step changes
+the cost or the values by less than the tolerance (relative); never on the gradient's size,
+which scales with the residuals' (a trace fitted to 1e-5 stopped at its start). Before it
+starts, the Jacobian at the start refuses the keys the outputs cannot identify
+(:func:`check_identifiable`). At the optimum, the
 covariance s^2 (J^T J)^-1 with s^2 = |r|^2 / (N - p) gives each value's 95 % interval (1.96
 standard deviations) and the correlations. The residuals of a closed loop are correlated in
 time, so these intervals are narrower than the truth; they rank what the data pin down and
@@ -32,6 +36,7 @@ from ..experiments.variation import FACTOR
 DIFF_STEP = 1e-3
 TOLERANCE = 1e-8  # scipy's default ftol and xtol
 NULL_DIRECTION = 1e-10  # a singular value this far below the largest: a direction unseen
+SENSITIVITY_FLOOR = 1e-6  # a key moving the relative residuals less over its range: unseen
 Z95 = 1.959963984540054  # the two-sided 95 % point of the normal distribution
 
 
@@ -126,22 +131,25 @@ def output_error(
 ) -> Fit:
     """Minimise |residuals(values)|^2 over the keys' ranges from ``start`` (module
     docstring), until a step changes the cost or the values by less than ``tolerance``
-    (relative). The Jacobian is by forward differences of step diff_step * max(1, |x|),
-    taken towards the range's inside: scipy's own, or with ``threads`` > 1 the same rule with
-    its columns simulated that many at a time (the compiled engine releases the GIL). A
-    candidate whose
-    simulation diverges scores a residual of 1 per sample (the start itself must simulate:
-    its error is raised)."""
+    (relative), after :func:`check_identifiable` at the start (an InputError line where it
+    refuses, or where the start cannot be simulated). The Jacobian is by forward differences:
+    scipy's own, or with ``threads`` > 1 (and at the start) of step diff_step * max(1, |x|),
+    at most half the range, taken towards the range's inside, its columns simulated that
+    many at a time (the compiled engine releases the GIL). A candidate whose simulation
+    diverges scores a residual of 1 per sample (the start itself must simulate: its error is
+    raised)."""
     from scipy.optimize import least_squares
     from scipy.stats import qmc
 
     low = np.array([k.low for k in keys])
     high = np.array([k.high for k in keys])
     started = time.perf_counter()
-    size, count, last = None, 0, {}
+    size, count, last, first = None, 0, {}, {}  # first: the start's residuals and Jacobian
 
     def guarded(values):
         nonlocal count, size
+        if np.array_equal(first.get("x"), values):
+            return first["r"]
         count += 1
         try:
             r = residuals(values)
@@ -154,7 +162,9 @@ def output_error(
         return r
 
     def jacobian(x):
-        steps = diff_step * np.maximum(1.0, np.abs(x))
+        if np.array_equal(first.get("x"), x):
+            return first["jac"]
+        steps = np.minimum(diff_step * np.maximum(1.0, np.abs(x)), (high - low) / 2)
         steps = np.where(x + steps > high, -steps, steps)
         steps = (x + steps) - x  # the step the rounded point takes
         points = [x + step * unit for step, unit in zip(steps, np.eye(x.size), strict=True)]
@@ -164,6 +174,13 @@ def output_error(
         return np.column_stack([(r - r0) / step for r, step in zip(columns, steps, strict=True)])
 
     points = [np.clip(start, low, high)]
+    try:
+        r0 = guarded(points[0])
+    except EmasimError as err:
+        named = ", ".join(f"{k.name} = {v:.6g}" for k, v in zip(keys, points[0], strict=True))
+        raise InputError(f"--fit: the fit's start ({named}) cannot be simulated: {err}") from None
+    first.update(x=points[0], r=r0, jac=jacobian(points[0]))
+    check_identifiable(first["jac"], keys)
     if starts > 1:
         # the first starts - 1 of a power of two of points: scipy warns on any other count
         power = math.ceil(math.log2(starts - 1)) if starts > 2 else 0
@@ -181,6 +198,7 @@ def output_error(
             method="trf",
             ftol=tolerance,
             xtol=tolerance,
+            gtol=None,  # the module docstring: the gradient's size is the residuals' scale
         )
         if best is None or result.cost < best.cost:
             best = result
@@ -196,6 +214,38 @@ def output_error(
         str(best.message),
         time.perf_counter() - started,
     )
+
+
+def check_identifiable(jac: np.ndarray, keys: list[Key]) -> None:
+    """Refuse, in one InputError line naming them, the keys the residuals cannot identify,
+    judged from their Jacobian ``jac`` at the fit's start with each column scaled by its key's
+    range (to first order, what the whole range does to the relative residuals):
+
+    - a column below SENSITIVITY_FLOOR: over its whole range the key moves the compared
+      outputs by less than a millionth of their size (a bound the run never meets, a term
+      the compared signals do not show);
+    - a key with a part along a direction the unit columns do not see (:func:`spread`): a
+      combination of keys leaves the outputs unchanged.
+
+    Checked before the fit, so that neither its time is spent nor its start reported as a
+    converged result: the optimiser stops at once where the cost is flat."""
+    scaled = jac * np.array([k.high - k.low for k in keys])
+    norms = np.linalg.norm(scaled, axis=0)
+    flat = [k.name for k, norm in zip(keys, norms, strict=True) if not norm >= SENSITIVITY_FLOOR]
+    if flat:
+        raise InputError(
+            f"--fit: {', '.join(flat)} cannot be identified from this trace: over its whole "
+            f"range it moves the compared outputs by less than {SENSITIVITY_FLOOR:g} of their "
+            "size; fit other keys, or a trace with the signals it acts on"
+        )
+    std, _ = spread(scaled / norms, np.ones(scaled.shape[0]))
+    blind = [k.name for k, s in zip(keys, std, strict=True) if not np.isfinite(s)]
+    if blind:
+        raise InputError(
+            f"--fit: this trace cannot tell {', '.join(blind)} apart (a combination of them "
+            "leaves the compared outputs unchanged, so no value is identified); fit fewer "
+            "keys or a trace that excites them"
+        )
 
 
 def spread(jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

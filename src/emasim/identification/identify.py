@@ -13,7 +13,9 @@ with the others; the relative errors of the free-run simulation; the method, the
 sha256, the time taken), the calibrated ``scenario.toml`` (the original text, the fitted
 values set), ``traces.parquet`` (measured, simulated and residual), ``fit.png`` and
 ``report.md``. ``validate`` files are simulated with the fitted values (a cross-test): their
-errors are reported beside the training trace's.
+errors are reported beside the training trace's. A fit that pins nothing down, or whose
+values the loop cannot simulate, is refused in one InputError line (:func:`check_identified`;
+the fit's own check before it starts: emasim.identification.fit.check_identifiable).
 """
 
 import time
@@ -23,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..arguments import flag, optional_string, strings
-from ..errors import InputError
+from ..errors import EmasimError, InputError
 from ..jsonio import json_text
 from ..naming import RUNS_ROOT, fresh_folder, slug
 from ..output import new_file, write_folder, write_new
@@ -44,6 +46,8 @@ from .idim import Estimate
 
 METHODS = ("output-error", "idim")
 MAX_STARTS = 1000  # each start is a whole fit, tens of simulations: 1000 take hours
+ON_BOUND = 1e-9  # of the range: a value this near a bound is on it (the fit's tolerance, if more)
+MISSED = 0.9  # a relative error of the free run this large: the model explains nothing of it
 
 
 @dataclass(frozen=True)
@@ -123,17 +127,44 @@ def calibrated_text(text: str, calibrated: dict, keys: list[str], data: str, sha
     return header + laid_over(text, calibrated)
 
 
-def on_bound(keys: list[Key], values: dict[str, float]) -> dict[str, str]:
-    """Key -> "lower" or "upper" for a value on its range's bound (within 1e-9 of the range):
-    the fit would go further; widen the range, or the model misses something."""
+def on_bound(keys: list[Key], values: dict[str, float], tolerance: float = 0.0) -> dict[str, str]:
+    """Key -> "lower" or "upper" for a value on its range's bound: within the optimiser's
+    ``tolerance`` (relative, as it was given it; at least ON_BOUND) of the range, where it
+    stops short of a bound it is pressed against. The fit would go further; widen the range,
+    or the model misses something."""
     found = {}
     for key in keys:
-        margin = 1e-9 * (key.high - key.low)
+        margin = max(tolerance, ON_BOUND) * (key.high - key.low)
         if values[key.name] <= key.low + margin:
             found[key.name] = "lower"
         elif values[key.name] >= key.high - margin:
             found[key.name] = "upper"
     return found
+
+
+def check_identified(path, keys: list[Key], interval: dict, errors: dict) -> None:
+    """Refuse, in one InputError line, a fit that identified nothing it can vouch for: a key
+    whose 95 % interval is wider than its range (the trace does not pin it down within it),
+    or a relative error of the free run (each one ``errors`` holds, the RMSE in mm aside) of
+    MISSED or more: the model, at the fitted values, explains almost none of that measured
+    signal (a column in other units or mapped to the wrong signal, traces joined with a jump).
+    Either way the values are the optimiser's stopping point, not a measurement."""
+    wide = [
+        f"the 95 % interval of {k.name} (± {interval[k.name]:.3g}) is wider than its range "
+        f"({k.low:g} to {k.high:g})"
+        for k in keys
+        if 2.0 * interval[k.name] > k.high - k.low
+    ]
+    missed = [
+        f"the fitted model misses {name} by {100 * errors[name]:.3g} %"
+        for name, error in errors.items()
+        if not name.endswith("_mm") and error >= MISSED
+    ]
+    if wide or missed:
+        raise InputError(
+            f"--data {path}: no value identified: {'; '.join(wide + missed)} "
+            "(check the trace's units and --map, or fit fewer keys)"
+        )
 
 
 def _estimate(model, keys: list[Key], method: str, starts: int):
@@ -249,17 +280,25 @@ def identify(
             "combination of them leaves the fit unchanged, so no value is identified); fit "
             "fewer keys or a trace that excites them"
         )
-    errors, simulated = model.errors(model.with_values(values))
-    validation = {
-        str(path): other.errors(other.with_values(values))[0]
-        for path, other in zip(validate, others, strict=True)
-    }
+    try:
+        errors, simulated = model.errors(model.with_values(values))
+        validation = {
+            str(path): other.errors(other.with_values(values))[0]
+            for path, other in zip(validate, others, strict=True)
+        }
+    except EmasimError as err:
+        named = ", ".join(f"{key} = {value:.6g}" for key, value in values.items())
+        raise InputError(
+            f"--method {chosen}: the identified values ({named}) cannot be simulated: {err} "
+            "(check the trace's units and --map)"
+        ) from None
+    check_identified(model.trace.path, keys, interval, errors)
     result = Identified(
         scenario=model.scenario.name,
         method=chosen,
         values=values,
         interval95=interval,
-        on_bound=on_bound(keys, values),
+        on_bound=on_bound(keys, values, model.tolerance if result_fit else 0.0),
         correlation=_correlations([k.name for k in keys], correlation),
         errors=errors,
         validation=validation,
@@ -316,6 +355,15 @@ def identify_series(
         raise InputError(f"--at: {len(labels)} given for {len(data)} --data files; give one each")
     if len(set(labels)) != len(labels):
         raise InputError("--at: each trace needs its own date or cycle count")
+    folders = [trace_folder(label, path) for label, path in zip(labels, data, strict=True)]
+    clash = [label for label, f in zip(labels, folders, strict=True) if folders.count(f) > 1]
+    if clash:  # refused before the fits, not when the series is written
+        name = folders[labels.index(clash[0])]
+        raise InputError(
+            f"--at {', '.join(clash)}: these traces' result folders would share the name "
+            f"{name} (the date or cycle count, then the file's name, every character but "
+            "letters and digits a dash); give each trace a date or file of its own"
+        )
     runs = [identify(scenario, path, **options) for path in data]
     rows = []
     for label, run in zip(labels, runs, strict=True):
@@ -336,6 +384,12 @@ def identify_series(
     return replace(series, folder=_write_series(series, labels, Path(out), force))
 
 
+def trace_folder(label: str, path: str | Path) -> str:
+    """The name of a series' folder for the trace ``path`` at ``label``: its date or cycle
+    count and its file's stem, as slugs."""
+    return f"{slug(label)}-{slug(Path(path).stem)}"
+
+
 def _write_series(series: Series, labels: list[str], out: Path, force: bool) -> Path:
     from ..analysis.figure_process import DrawHere
     from ..analysis.identification_plots import series_figure
@@ -350,7 +404,7 @@ def _write_series(series: Series, labels: list[str], out: Path, force: bool) -> 
             write_new(tmp / "wear.json", json_text(series.wear))
             DrawHere().save(lambda: plot_wear(series.wear), tmp / "wear.png")
         for label, run in zip(labels, series.runs, strict=True):
-            folder = tmp / f"{slug(label)}-{slug(Path(run.data['file']).stem)}"
+            folder = tmp / trace_folder(label, run.data["file"])
             folder.mkdir()
             _write_files(run, folder)
 
