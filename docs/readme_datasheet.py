@@ -29,6 +29,7 @@ ROWS = (  # datasheet key, the table's wording, unit
     ("bandwidth_large_Hz", "bandwidth (-3 dB), large signal", "Hz"),
     ("threshold_mm", "threshold", "mm"),
     ("hysteresis_mm", "hysteresis width", "mm"),
+    ("limit_cycle_mm", "limit cycle in the slow triangle (±)", "mm"),
     ("load_step_stiffness_N_per_mm", "stiffness under a load step (peak deflection)", "N/mm"),
     ("dynamic_stiffness_min_N_per_mm", "least dynamic stiffness", "N/mm"),
     ("no_load_rate_mm_s", "no-load rate", "mm/s"),
@@ -39,7 +40,11 @@ ROWS = (  # datasheet key, the table's wording, unit
 
 
 def number(x) -> str:
-    return "n/a" if x is None else f"{x:.3g}"
+    """A figure's cell as the datasheet's report writes it (emasim.analysis.datasheet.cell),
+    to 3 significant figures."""
+    from emasim.analysis.datasheet import cell
+
+    return cell(x, 3)
 
 
 def render(sheet: dict) -> str:

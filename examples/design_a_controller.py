@@ -17,6 +17,7 @@ from matplotlib.figure import Figure  # files only: no window, no pyplot
 from scipy.optimize import brentq
 
 from emasim import linearize
+from emasim.analysis.datasheet import cell
 from emasim.experiments.acceptance import Battery, run_acceptance
 from emasim.scenarios.loader import load_scenario
 
@@ -45,9 +46,11 @@ sheet = run_acceptance(design(chosen), battery=battery)
 label = next(iter(sheet.figures))
 figures = sheet.figures[label]
 amplitude = figures["small_amplitude_mm"]
+threshold = figures["threshold_mm"]  # a number, a bound, or not measurable where the loop hunts
+unit = "" if isinstance(threshold, dict) and "not_measurable" in threshold else " mm"
 print(
     f"simulated small-signal bandwidth {figures['bandwidth_small_Hz']:.2f} Hz "
-    f"(+-{amplitude:g} mm), threshold {figures['threshold_mm']:.4f} mm"
+    f"(+-{amplitude:g} mm), threshold {cell(threshold)}{unit}"
 )
 
 # the Bode plot: the linear model's line, the simulated drive's measured points on it

@@ -37,21 +37,27 @@ FIGURES = (
     (
         "hysteresis.png",
         "Threshold and hysteresis",
-        "Output against command over the slow triangle; the loop's width is the hysteresis.",
+        "Output against command over the slow triangle; the loop's width is the hysteresis "
+        "(where the loop's own limit cycle leaves it readable).",
     ),
 )
 
 
-def cell(value) -> str:
-    """One table cell: 4 significant figures, yes/no, a word as it is, or n/a where the battery
-    found none."""
+def cell(value, digits: int = 4) -> str:
+    """One table cell: ``digits`` significant figures, yes/no, a word as it is, a bound as
+    "< x" or "> x", a figure not measurable as "not measurable: what" (the forms of
+    emasim.experiments.acceptance.FIGURE_FORMS), or n/a where the battery found none."""
     if value is None:
         return "n/a"
+    if isinstance(value, dict):
+        if "bound" in value:
+            return f"{value['bound']} {value['value']:.{digits}g}"
+        return f"not measurable: {value['not_measurable']}"
     if isinstance(value, str):
         return value
     if isinstance(value, bool):
         return "yes" if value else "no"
-    return f"{value:.4g}"
+    return f"{value:.{digits}g}"
 
 
 CSV_COLUMNS = (
@@ -181,6 +187,12 @@ def write_datasheet(acceptance, folder: Path) -> None:
         }
         for key in sheet["definitions"]
     ]
+    notes = [  # why each figure that is not a number is what it is, where it says
+        f"{label}, {key}: {cell(value)}: {value['why']}"
+        for label in labels
+        for key, value in sheet["sets"][label].items()
+        if isinstance(value, dict) and "why" in value
+    ]
     environment = Environment(autoescape=select_autoescape(default=True))
     template = environment.from_string(
         files("emasim.analysis").joinpath("datasheet.html.j2").read_text()
@@ -199,6 +211,8 @@ def write_datasheet(acceptance, folder: Path) -> None:
         responses=sheet["frequency_response"],
         labels=labels,
         rows=rows,
+        forms=sheet["figure_forms"],
+        notes=notes,
         figures=[{"file": f, "title": t, "caption": c} for f, t, c in FIGURES],
         definitions=sheet["definitions"],
         battery={

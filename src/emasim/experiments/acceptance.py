@@ -8,15 +8,21 @@ standing loads, a load motor's preload, stay) and its own command and load:
   amplitude a fraction of the full stroke (1 % and 10 %, peak), at log-spaced frequencies. Each
   run settles for ``settle_s`` plus ``settle_cycles`` periods, then the fundamental of the
   output over the command (:mod:`emasim.analysis.frequency`) is read over a whole number of
-  periods. Figures: the -3 dB bandwidth, the frequencies of -45 and -90 deg phase. With
-  ``excitation="chirp"`` one logarithmic sweep per amplitude replaces the stepped sines (a
-  band an eighth of a decade beyond the frequencies read, ``chirp_s`` long, after
-  ``settle_s`` at rest and followed by ``settle_s`` more), read by the Fourier transforms of
-  the whole record (:func:`emasim.analysis.frequency.sweep_response`): fewer simulated
-  seconds (the wall time against the stepped sines': benchmarks/bench_acceptance.py), and for
-  a nonlinear loop the best linear approximation instead of each amplitude's describing
-  function. Every response is read on several outputs (OUTPUTS: the controlled position, the
-  motor speed, the q current) and kept (:class:`Response`): the datasheet saves them as
+  periods. Figures: the -3 dB bandwidth, the frequencies of -45 and -90 deg phase, each
+  interpolated inside the measured band or, outside it, a bound: ``< f_min`` where the response
+  is already past the level at the lowest frequency, ``> f_max`` where it never reaches it
+  (:func:`band_figures`). The phase is read up to where it turns back up (a smooth loop's phase
+  does not; past the turn a crossing may hide between two frequencies, so a level not reached
+  before it is ``>`` the last frequency before it), and a phase level is not measurable where
+  the lowest frequency is already beyond the bandwidth (a lag there of more than 180 deg reads
+  as a lead). With ``excitation="chirp"`` one logarithmic sweep per amplitude replaces the
+  stepped sines (a band an eighth of a decade beyond the frequencies read, ``chirp_s`` long,
+  after ``settle_s`` at rest and followed by ``settle_s`` more), read by the Fourier transforms
+  of the whole record (:func:`emasim.analysis.frequency.sweep_response`): fewer simulated
+  seconds (the wall time against the stepped sines': benchmarks/bench_acceptance.py), and for a
+  nonlinear loop the best linear approximation instead of each amplitude's describing function.
+  Every response is read on several outputs (OUTPUTS: the controlled position, the motor speed,
+  the q current) and kept (:class:`Response`): the datasheet saves them as
   frequency_response.csv, and :meth:`Acceptance.frequency_response` gives any of them as a
   ``control.FrequencyResponseData``.
 * **The linear model beside them**: where ``emasim.linearize`` models the loop (plays
@@ -26,12 +32,19 @@ standing loads, a load motor's preload, stay) and its own command and load:
   a linear form; the nominal bench, whose linkage hinges hang open at rest with no standing
   load).
 * **Threshold and hysteresis**: a slow triangle of the command after a hold of ``settle_s``
-  at mid stroke. The threshold is the command
-  travel after each reversal before the output has moved ``detection_mm`` the new way, less
-  ``detection_mm`` (for a pure dead band of width w it is w, whatever the detection level);
-  the median over the reversals. The hysteresis width is the largest gap between the output's
-  falling and rising branches at equal command, over the middle 90 % of the command range
-  (for a play of width w it is w).
+  at mid stroke. The threshold is the command travel after each reversal before the output
+  has moved ``detection_mm`` the new way, less ``detection_mm`` (for a pure dead band of width
+  w it is w, whatever the detection level); the median over the reversals. The hysteresis
+  width is the largest gap between the output's falling and rising branches at equal
+  command, over the middle 90 % of the command range (for a play of width w it is w). Both
+  are read only where the loop's own motion leaves them readable: its limit cycle ±A (half
+  the largest swing of the output against the command's direction mid sweep, or at rest in
+  the hold: :func:`limit_cycle`) is a figure of the sheet, and with A over a fifth of the
+  triangle's amplitude both are "not measurable: the loop limit-cycles ±A"; a swing 2A over
+  the detection level leaves the threshold not measurable, one over a fifth of the width
+  read the hysteresis (:func:`triangle_figures`, which says why). A threshold is never
+  negative: where the output moved faster than the command it is the bound
+  ``< detection_mm``.
 * **Stiffness**: static, a rod-force step (a fraction of the theoretical stall force
   kt I_max / K) while the command holds: force over the output's deflection, the peak one and
   the one left at the end of the hold (with integral action none is left above the output's
@@ -46,6 +59,12 @@ standing loads, a load motor's preload, stay) and its own command and load:
   current limit) and the net electrical energy per cycle
   integral 3/2 (ud id + uq iq) dt (J) come from the large-signal sine at ``cycle_frequency_Hz``.
 
+A crossing outside the measured band or past a turn of the phase, a threshold below the
+detection level and a figure the loop's limit cycle swamps are given neither as a number nor as
+None: as a bound, ``{"bound": "<" or ">", "value": x}`` (with ``"why"`` where the band's edge is
+not the reason), or as ``{"not_measurable": what, "why": why}`` (FIGURE_FORMS; the tables print
+"< x", "> x" and "not measurable: what", report.html each "why" below its table).
+
 The output is the position the loop controls, noise-free, in rod millimetres: the rod for 'rod'
 and 'motor' feedback (with motor feedback the backlash and the compliance are outside the loop,
 and show), the rudder angle through the rigid kinematics for 'rudder' feedback. Rod forces are
@@ -56,6 +75,7 @@ default, the compiled loop releasing the GIL): each run's measurement is kept in
 from the runs it finished when run again.
 """
 
+import itertools
 import json
 import math
 import time
@@ -262,6 +282,93 @@ class Response:
         return OUTPUTS[self.output][0]
 
 
+# --- the figures' forms --------------------------------------------------------------------
+
+FIGURE_FORMS = (
+    'a figure is a number, or where the battery cannot state one, {"bound": "<" or ">", '
+    '"value": x}: it lies below or above x (a crossing outside the measured band, or past '
+    'where the phase turns back up, then with "why"; a threshold below the detection level), or '
+    '{"not_measurable": what, "why": why} (a phase level past the bandwidth at the lowest '
+    "frequency; a threshold or hysteresis the loop's own limit cycle swamps)"
+)
+
+
+def bound(side: str, value: float, why: str | None = None) -> dict:
+    """A figure known only to lie below (``"<"``) or above (``">"``) ``value``, and why where
+    the band's edge is not the reason (FIGURE_FORMS)."""
+    out = {"bound": side, "value": float(value)}
+    return out if why is None else out | {"why": why}
+
+
+def unmeasurable(what: str, why: str) -> dict:
+    """A figure the battery cannot read on this loop, what stops it and why (FIGURE_FORMS)."""
+    return {"not_measurable": what, "why": why}
+
+
+def crossing(frequencies_Hz: np.ndarray, values: np.ndarray, level: float) -> float | dict:
+    """The first frequency where ``values`` fall to ``level`` (dB or deg), interpolated in log
+    frequency (:func:`emasim.analysis.frequency.first_crossing`) where it lies inside the
+    measured band; else a bound: ``< f_min`` where the first value is already below the level,
+    ``> f_max`` where none reaches it."""
+    if values[0] < level:
+        return bound("<", frequencies_Hz[0])
+    found = fr.first_crossing(frequencies_Hz, values, level)
+    return bound(">", frequencies_Hz[-1]) if found is None else found
+
+
+PHASE_TURN_DEG = 10.0  # a lag shrinking by more from one frequency to the next: no smooth loop
+
+
+def phase_crossing(frequencies_Hz: np.ndarray, phases: np.ndarray, level: float):
+    """:func:`crossing` of the phase, read only up to where it turns back up: where the lag
+    shrinks by more than PHASE_TURN_DEG from one measured frequency to the next, the response
+    is no smooth linear loop's (a minimum-phase loop's lag shrinks only where its gain rises),
+    and past that the grid can miss a crossing: on bench-step's industrial PID at ±2.5 mm the
+    drive's current limit makes the response collapse between 18.3 and 18.6 Hz, its phase
+    dipping to -94 deg between the battery's 17.8 and 23.7 Hz, read -46 and -9 deg. A level
+    not reached before the turn is the bound ``>`` the last frequency before it, with why."""
+    rises = np.flatnonzero(np.diff(phases) > PHASE_TURN_DEG)
+    if rises.size == 0:
+        return crossing(frequencies_Hz, phases, level)
+    k = int(rises[0])
+    found = crossing(frequencies_Hz[: k + 1], phases[: k + 1], level)
+    if not isinstance(found, dict) or found["bound"] == "<":
+        return found
+    f, ph = frequencies_Hz, phases
+    return bound(
+        ">",
+        f[k],
+        f"the phase turns back up between {f[k]:.4g} and {f[k + 1]:.4g} Hz ({ph[k]:.3g} to "
+        f"{ph[k + 1]:.3g} deg): past that, a crossing may lie between measured frequencies",
+    )
+
+
+def band_figures(frequencies_Hz, h) -> dict:
+    """The closed loop's figures from its response H(f) over the measured band: the -3 dB
+    bandwidth, the frequencies of -45 and -90 deg phase (each a value or a bound:
+    :func:`crossing`, :func:`phase_crossing`) and the peak gain (dB).
+
+    The phase is unwrapped from the lowest frequency, taken there in (-180, 180]: right where
+    the lag there is under 180 deg, as it is where the loop still follows (gain above -3 dB).
+    Where the lowest frequency is already beyond the bandwidth, a lag of more than 180 deg
+    there reads as a lead, so a phase level its first reading has not reached is not
+    measurable (one it has reached is ``< f_min`` on any turn of the phase)."""
+    f = np.asarray(frequencies_Hz, dtype=float)
+    gains, phases = fr.gain_dB(h), fr.phase_deg(h)
+    figures = {"bandwidth_Hz": crossing(f, gains, -3.0)}
+    for level, key in ((-45.0, "phase_45_Hz"), (-90.0, "phase_90_Hz")):
+        if gains[0] < -3.0 and phases[0] > level:
+            figures[key] = unmeasurable(
+                f"the lowest frequency, {f[0]:.4g} Hz, is beyond the bandwidth",
+                f"the gain there is {gains[0]:.3g} dB: a lag of more than 180 deg there "
+                f"reads as a lead ({phases[0]:.3g} deg)",
+            )
+        else:
+            figures[key] = phase_crossing(f, phases, level)
+    figures["peak_gain_dB"] = float(np.max(gains))
+    return figures
+
+
 # --- the runs -----------------------------------------------------------------------------
 
 
@@ -374,13 +481,16 @@ def triangle_job(base, drive, battery):
 
 
 def measure_triangle(scenario, drive, battery) -> dict:
-    """Threshold and hysteresis width (m) of the triangle run (module docstring)."""
+    """The triangle run's readings (m), before the datasheet judges them
+    (:func:`triangle_figures`): each reversal's threshold reading (inf where the output never
+    moved ``detection_mm`` the new way before the next one) and the command's travel after it,
+    the hysteresis width read, and the loop's own motion (:func:`limit_cycle`)."""
     result = simulate(scenario.setup())
     t, command, output = result.t, result["position_ref_m"], drive.output_m(result)
     term = scenario.reference.position_mm[0]
-    reversals = list(term.time_s[2:-1])
+    hold, reversals, end = term.time_s[1], list(term.time_s[2:-1]), term.time_s[-1]
     delta = battery.detection_mm * MM
-    thresholds = []
+    readings, travels = [], []
     for k, t_rev in enumerate(reversals):
         sign = -1.0 if k % 2 == 0 else 1.0  # the command's new direction
         after = t >= t_rev
@@ -389,18 +499,106 @@ def measure_triangle(scenario, drive, battery) -> dict:
         y, c = output[after], command[after]
         extreme = np.maximum.accumulate(-sign * y) * -sign  # the output's turn-around
         moved = np.flatnonzero(sign * (y - extreme) >= delta)
-        if moved.size:
-            thresholds.append(abs(c[moved[0]] - c[0]) - delta)
+        readings.append(abs(c[moved[0]] - c[0]) - delta if moved.size else math.inf)
+        travels.append(float(abs(c[-1] - c[0])))
     a = battery.triangle_amplitude * drive.stroke_m
     grid = np.linspace(-0.9 * a, 0.9 * a, 361)
     rising, falling = _branches(t, command, output, reversals)
     width = float(np.max(np.interp(grid, *falling) - np.interp(grid, *rising)))
     shown = t >= reversals[0]
     return {
-        "threshold_m": float(np.median(thresholds)) if thresholds else None,
+        "threshold_readings_m": [float(x) for x in readings],
+        "threshold_travels_m": travels,
         "hysteresis_m": width,
+        "limit_cycle_m": limit_cycle(t, command, output, [hold, *reversals, end], a),
         "loop": (command[shown], output[shown]),
     }
+
+
+SWEEP_MIDDLE = 0.6  # the part of a sweep read for the loop's own motion: |command| <= 0.6 a
+
+
+def limit_cycle(t, command, output, corners, amplitude_m) -> float:
+    """The loop's own motion during the triangle run (m): half the largest swing of the output
+    against the command's direction while the command sweeps between two corners (the hold's
+    end, the reversals, the end), read where the command is within SWEEP_MIDDLE of the
+    amplitude (away from the reversals, where the threshold and the loop's transient are), or
+    half the output's peak-to-peak about its mean over the second half of the hold, whichever
+    is larger. A loop that follows the slow sweep never moves against it: 0 (a dead band
+    stops the output, it does not reverse it). A loop that hunts does, by about its
+    oscillation's peak-to-peak: the bench's loops rest still in the hold and hunt only once
+    the command moves, which is why the sweeps are read."""
+    hold = corners[0]
+    resting = (t >= 0.5 * hold) & (t < hold)
+    swings = [0.5 * float(np.ptp(output[resting]))] if resting.any() else [0.0]
+    for start, stop in itertools.pairwise(corners):
+        inside = (t >= start) & (t < stop) & (np.abs(command) <= SWEEP_MIDDLE * amplitude_m)
+        if np.count_nonzero(inside) < 2:
+            continue
+        c, y = command[inside], output[inside]
+        sign = 1.0 if c[-1] >= c[0] else -1.0  # the sweep's direction
+        ahead = np.maximum.accumulate(sign * y)  # the output's furthest point so far
+        swings.append(0.5 * float(np.max(ahead - sign * y)))
+    return max(swings)
+
+
+LIMIT_CYCLE_FRACTION = 0.2  # of the triangle's amplitude: beyond, neither figure is read
+WIDTH_SHARE = 0.2  # the most of a hysteresis width read that the loop's swing may account for
+
+
+def triangle_figures(triangle: dict, amplitude_m: float, detection_m: float) -> dict:
+    """The datasheet's threshold, hysteresis and limit cycle (mm) from the triangle's readings
+    (:func:`measure_triangle`), judged against the loop's own motion: its limit cycle, ±A (A
+    half its swing, :func:`limit_cycle`), and the battery's resolution, the detection level d.
+
+    * 2A below d: the loop is quiet at the battery's resolution; both figures are read. A
+      threshold is the median of the reversals' readings; it is never negative: a negative
+      median means the output moved d the new way with less than d of command travel, faster
+      than the command (a transient, not a dead band), so the threshold is stated as below the
+      battery's resolution, the bound ``< d``. Where most reversals left the output unmoved,
+      it is the bound ``>`` the least command travel (less d) that did not move it.
+    * A above LIMIT_CYCLE_FRACTION (a fifth) of the triangle's amplitude: the loop
+      limit-cycles, its own swing comparable to the test's; the output's reversals are the
+      loop's, not the command's, and the branches are the oscillation's envelope: neither
+      figure is read (``not measurable``, with A).
+    * In between: the threshold is not measurable (the loop's own swing, 2A, is over the
+      detection level: it triggers the detection whatever the command does). The hysteresis
+      width is read with an error of up to 2A (each branch moved by up to A); it is reported
+      where 2A is at most WIDTH_SHARE (a fifth) of the width read, else not measurable.
+
+    A figure that is not a number is ``{"bound": "<" or ">", "value": x}`` or
+    ``{"not_measurable": what, "why": why}`` (FIGURE_FORMS)."""
+    a, d = amplitude_m, detection_m
+    swing = triangle["limit_cycle_m"]
+    width = triangle["hysteresis_m"]
+    lc = f"the loop limit-cycles ±{swing / MM:.3g} mm"
+    out = {"limit_cycle_mm": swing / MM}
+    if 2 * swing < d:
+        readings = np.array(triangle["threshold_readings_m"])
+        median = float(np.median(readings))
+        if math.isinf(median):
+            travels = np.array(triangle["threshold_travels_m"])[np.isinf(readings)]
+            out["threshold_mm"] = bound(">", float(np.min(travels) - d) / MM)
+        elif median < 0:
+            out["threshold_mm"] = bound("<", d / MM)
+        else:
+            out["threshold_mm"] = median / MM
+        out["hysteresis_mm"] = width / MM
+    elif swing > LIMIT_CYCLE_FRACTION * a:
+        why = f"more than a fifth of the triangle's amplitude, ±{a / MM:.3g} mm"
+        out["threshold_mm"] = out["hysteresis_mm"] = unmeasurable(lc, why)
+    else:
+        why = f"its swing, {2 * swing / MM:.3g} mm, is over the detection level, {d / MM:.3g} mm"
+        out["threshold_mm"] = unmeasurable(lc, why)
+        if 2 * swing > WIDTH_SHARE * width:
+            why = (
+                f"its swing, {2 * swing / MM:.3g} mm, is over a fifth of the width read, "
+                f"{width / MM:.3g} mm"
+            )
+            out["hysteresis_mm"] = unmeasurable(lc, why)
+        else:
+            out["hysteresis_mm"] = width / MM
+    return {key: out[key] for key in ("threshold_mm", "hysteresis_mm", "limit_cycle_mm")}
 
 
 def _branches(t, command, output, reversals):
@@ -608,18 +806,30 @@ def decoded(value):
 DEFINITIONS = {
     "small_amplitude_mm": "the small-signal command's peak amplitude (a fraction of the stroke)",
     "large_amplitude_mm": "the large-signal command's peak amplitude (a fraction of the stroke)",
-    "bandwidth_small_Hz": "first frequency where |x/x_cmd| falls to -3 dB, small signal",
-    "bandwidth_large_Hz": "first frequency where |x/x_cmd| falls to -3 dB, large signal",
-    "phase_45_small_Hz": "first frequency of -45 deg phase of x/x_cmd, small signal",
-    "phase_90_small_Hz": "first frequency of -90 deg phase of x/x_cmd, small signal",
-    "phase_45_large_Hz": "first frequency of -45 deg phase of x/x_cmd, large signal",
-    "phase_90_large_Hz": "first frequency of -90 deg phase of x/x_cmd, large signal",
+    "bandwidth_small_Hz": "first frequency where |x/x_cmd| falls to -3 dB, small signal; "
+    "'< f' or '> f' where that lies outside the measured band",
+    "bandwidth_large_Hz": "first frequency where |x/x_cmd| falls to -3 dB, large signal; "
+    "'< f' or '> f' where that lies outside the measured band",
+    "phase_45_small_Hz": "first frequency of -45 deg phase of x/x_cmd, small signal; a bound "
+    "outside the measured band or past where the phase turns back up",
+    "phase_90_small_Hz": "first frequency of -90 deg phase of x/x_cmd, small signal; a bound "
+    "outside the measured band or past where the phase turns back up",
+    "phase_45_large_Hz": "first frequency of -45 deg phase of x/x_cmd, large signal; a bound "
+    "outside the measured band or past where the phase turns back up",
+    "phase_90_large_Hz": "first frequency of -90 deg phase of x/x_cmd, large signal; a bound "
+    "outside the measured band or past where the phase turns back up",
     "peak_gain_small_dB": "largest |x/x_cmd| over the band, small signal (resonance peak)",
     "peak_gain_large_dB": "largest |x/x_cmd| over the band, large signal",
     "threshold_mm": "command travel after a reversal of a slow triangle before the output moves "
-    "(less the detection level), median over the reversals",
+    "(less the detection level), median over the reversals; '< detection level' where the "
+    "output moved faster than the command; not measurable where the loop's own swing is over "
+    "the detection level",
     "hysteresis_mm": "largest gap between the output's falling and rising branches at equal "
-    "command, over the middle 90 % of the slow triangle",
+    "command, over the middle 90 % of the slow triangle; not measurable where the loop "
+    "limit-cycles more than a fifth of the triangle's amplitude, or its swing is over a fifth "
+    "of the width read",
+    "limit_cycle_mm": "the loop's own oscillation in the slow triangle, half its swing against "
+    "the command's direction mid sweep (or at rest in the hold); 0 for a loop that follows",
     "static_stiffness_N_per_mm": "rod-force step over the deflection left at the end of the hold; "
     "a lower bound (force over the output's jitter) where integral action leaves none",
     "static_stiffness_lower_bound": "true when static_stiffness_N_per_mm is that lower bound",
@@ -645,9 +855,10 @@ DEFINITIONS = {
 @dataclass
 class Acceptance:
     """The battery's outcome: ``figures`` label -> the datasheet's figures (DEFINITIONS, in
-    the units their names carry), ``curves`` label -> its curves (``responses``: every
-    frequency response, :class:`Response`, measured and the linear model's; ``loop``: the
-    hysteresis loop), and what ran."""
+    the units their names carry; a bound or a figure not measurable is a dict: FIGURE_FORMS),
+    ``curves`` label -> its curves (``responses``: every frequency response,
+    :class:`Response`, measured and the linear model's; ``loop``: the hysteresis loop), and
+    what ran."""
 
     scenario: Scenario
     battery: Battery
@@ -656,13 +867,16 @@ class Acceptance:
     meta: dict
 
     def datasheet(self) -> dict:
-        """What DIR/datasheet.json holds: the sets side by side, the definitions, the battery,
-        what the output is, and each set's linear model (what it is, or why there is none)."""
+        """What DIR/datasheet.json holds: the sets side by side, the definitions, the forms a
+        figure takes where it is not a number (FIGURE_FORMS: a bound, or not measurable), the
+        battery, what the output is, and each set's linear model (what it is, or why there is
+        none)."""
         described = ("output", "linear_model")
         return {
             "scenario": self.scenario.name,
             "sets": self.figures,
             "definitions": DEFINITIONS,
+            "figure_forms": FIGURE_FORMS,
             "battery": asdict(self.battery),
             "output": self.meta["output"],
             "linear_model": self.meta["linear_model"],
@@ -998,16 +1212,15 @@ def summarize(measured: dict, drive: Drive, battery: Battery) -> tuple[dict, dic
             )
     for size in ("small", "large"):
         response = response_of(curves, "position_command", size)
-        bode = fr.bode_figures(response.frequencies_Hz, response.h)
+        bode = band_figures(response.frequencies_Hz, response.h)
         figures[f"bandwidth_{size}_Hz"] = bode["bandwidth_Hz"]
         figures[f"phase_45_{size}_Hz"] = bode["phase_45_Hz"]
         figures[f"phase_90_{size}_Hz"] = bode["phase_90_Hz"]
         figures[f"peak_gain_{size}_dB"] = bode["peak_gain_dB"]
     triangle = measured[("triangle",)]
     curves["loop"] = triangle["loop"]
-    threshold = triangle["threshold_m"]
-    figures["threshold_mm"] = threshold / MM if threshold is not None else None
-    figures["hysteresis_mm"] = triangle["hysteresis_m"] / MM
+    amplitude = battery.triangle_amplitude * drive.stroke_m
+    figures.update(triangle_figures(triangle, amplitude, battery.detection_mm * MM))
     step = measured[("load_step",)]
     figures["static_stiffness_N_per_mm"] = step["static_stiffness_N_per_m"] * MM
     figures["static_stiffness_lower_bound"] = step["static_stiffness_lower_bound"]
