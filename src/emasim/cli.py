@@ -983,7 +983,8 @@ def acceptance(
 
 def _print_datasheet(result) -> None:
     """The datasheet's figures, a row each (the name in words, wrapped, and its unit), a column
-    per set; then each set's linear model, or why it has none."""
+    per set, its words wrapped too ("not measurable: ...": unwrapped, they left the names no
+    room in a narrow terminal); then each set's linear model, or why it has none."""
     if not _loud():
         return
     from .analysis.datasheet import cell
@@ -992,7 +993,7 @@ def _print_datasheet(result) -> None:
     table.add_column("figure", overflow="fold", ratio=1)
     table.add_column("unit", no_wrap=True)
     for name in result.figures:
-        table.add_column(name, justify="right", no_wrap=True)
+        table.add_column(name, justify="right", overflow="fold")
     for key in next(iter(result.figures.values())):
         table.add_row(*_in_words(key), *(cell(f[key]) for f in result.figures.values()))
     console.print(table)
